@@ -1,0 +1,27 @@
+#pragma once
+// The table of odvr subcommands. Each Add<X> declares its options on `sub` and returns the
+// function that runs it: a thin wrapper over library calls, returning the process exit code.
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace odvr::app {
+
+using CommandFn = std::function<int()>;
+
+struct CommandSpec {
+  std::string name;
+  std::string summary;
+  std::function<CommandFn(CLI::App* sub)> add;
+};
+
+const std::vector<CommandSpec>& Commands();
+
+CommandFn AddInfo(CLI::App* sub);
+
+// Runs the whole command line; what main() returns. Errors end here as one line on stderr:
+// exit 2 for usage errors (unknown command, bad flag or value), 1 for everything else.
+int Main(int argc, char** argv);
+
+}  // namespace odvr::app

@@ -1,0 +1,89 @@
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <iostream>
+
+#include "app/commands.h"
+#include "engine/core/error.h"
+
+namespace odvr::app {
+
+const std::vector<CommandSpec>& Commands() {
+  static const std::vector<CommandSpec> commands = {
+      {"info", "Print the OpenGL context, its compute limits and library versions", AddInfo},
+  };
+  return commands;
+}
+
+namespace {
+
+std::string OneLine(std::string text) {
+  while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
+  std::replace(text.begin(), text.end(), '\n', ' ');
+  return text;
+}
+
+void SetUpLogging(bool verbose, bool quiet) {
+  auto logger = spdlog::stderr_color_mt("odvr");
+  logger->set_pattern("%^[%l]%$ %v");
+  spdlog::set_default_logger(logger);
+  spdlog::set_level(quiet ? spdlog::level::err : verbose ? spdlog::level::debug : spdlog::level::info);
+}
+
+}  // namespace
+
+int Main(int argc, char** argv) {
+  CLI::App app{"odvr: an augmented-reality 360° video player that lights a virtual car with the video's own light",
+               "odvr"};
+  app.set_version_flag("--version", ODVR_VERSION);
+  bool verbose = false, quiet = false;
+  app.add_flag("-v,--verbose", verbose, "Log more (debug level)");
+  app.add_flag("-q,--quiet", quiet, "Log errors only");
+  app.fallthrough();
+  app.require_subcommand(0, 1);
+
+  std::vector<std::pair<CLI::App*, CommandFn>> runners;
+  for (const auto& spec : Commands()) {
+    CLI::App* sub = app.add_subcommand(spec.name, spec.summary);
+    runners.emplace_back(sub, spec.add(sub));
+  }
+
+  // CLI11 would call an unknown command an "unexpected argument"; say what it is.
+  if (argc > 1 && argv[1][0] != '-') {
+    const std::string name = argv[1];
+    const bool known = std::any_of(Commands().begin(), Commands().end(), [&](const auto& c) { return c.name == name; });
+    if (!known) {
+      std::string list;
+      for (const auto& c : Commands()) list += (list.empty() ? "" : ", ") + c.name;
+      std::cerr << "odvr: unknown command '" << name << "' (commands: " << list << "; see odvr --help)\n";
+      return 2;
+    }
+  }
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);  // --help, --version
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "odvr: " << OneLine(e.what()) << " (see odvr --help)\n";
+    return 2;
+  }
+  SetUpLogging(verbose, quiet);
+
+  try {
+    for (auto& [sub, run] : runners) {
+      if (sub->parsed()) return run();
+    }
+    std::cout << app.help();
+    return 0;
+  } catch (const UsageError& e) {
+    std::cerr << "odvr: " << OneLine(e.what()) << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "odvr: error: " << OneLine(e.what()) << "\n";
+    return 1;
+  }
+}
+
+}  // namespace odvr::app

@@ -1,0 +1,43 @@
+#include "engine/core/atomic_file.h"
+
+#include <unistd.h>
+
+#include <fstream>
+#include <system_error>
+
+#include "engine/core/error.h"
+
+namespace odvr {
+
+void WriteFileAtomically(const std::filesystem::path& path,
+                         const std::function<void(const std::filesystem::path&)>& write) {
+  namespace fs = std::filesystem;
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw Error(dir.string(), "cannot create directory: " + ec.message());
+  const fs::path tmp =
+      dir / ("." + path.stem().string() + ".tmp" + std::to_string(::getpid()) + path.extension().string());
+  try {
+    write(tmp);
+  } catch (...) {
+    fs::remove(tmp, ec);
+    throw;
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw Error(path.string(), "cannot write (rename failed): " + ec.message());
+  }
+}
+
+void WriteTextAtomically(const std::filesystem::path& path, const std::string& text) {
+  WriteFileAtomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    out << text;
+    out.flush();
+    if (!out) throw Error(path.string(), "cannot write");
+  });
+}
+
+}  // namespace odvr

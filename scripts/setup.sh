@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# odvr set-up on Debian 12, as root (or with sudo). Idempotent: a second run reuses the build.
+#   scripts/setup.sh demo   install, build, run the default demo
+#   scripts/setup.sh test   install, build, run every test
+#   scripts/setup.sh deps   install the Debian packages only
+#   scripts/setup.sh build  install and build
+# Environment: BUILD_DIR (default build), ODVR_CMAKE_ARGS (extra CMake arguments).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+BUILD_DIR=${BUILD_DIR:-build}
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+
+install_deps() {
+  mapfile -t packages < <(grep -v '^\s*#' deps/debian-packages.txt | grep -v '^\s*$')
+  local missing=()
+  for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -gt 0 ]; then
+    echo "odvr setup: installing ${#missing[@]} Debian packages: ${missing[*]}"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  fi
+}
+
+build() {
+  # shellcheck disable=SC2086
+  cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo ${ODVR_CMAKE_ARGS:-}
+  cmake --build "$BUILD_DIR" -j "$(nproc)"
+}
+
+case "${1:-}" in
+  deps) install_deps ;;
+  build) install_deps; build ;;
+  test)
+    install_deps
+    build
+    ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)" --timeout 1200
+    ;;
+  demo)
+    install_deps
+    build
+    "$BUILD_DIR"/app/odvr info
+    ;;
+  *)
+    echo "usage: scripts/setup.sh demo|test|deps|build" >&2
+    exit 2
+    ;;
+esac

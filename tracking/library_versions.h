@@ -1,0 +1,7 @@
+#pragma once
+#include "engine/core/library_versions.h"
+
+namespace odvr {
+// Ceres, Eigen and OpenGV, which only tracking links.
+LibraryVersions TrackingLibraryVersions();
+}  // namespace odvr
