@@ -4,6 +4,7 @@
 #   scripts/setup.sh test   install, build, run every test
 #   scripts/setup.sh deps   install the Debian packages only
 #   scripts/setup.sh build  install and build
+#   scripts/setup.sh tools  install the reference tools (Blender, COLMAP) for media and benches
 # Environment: BUILD_DIR (default build), ODVR_CMAKE_ARGS (extra CMake arguments).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,8 +13,17 @@ BUILD_DIR=${BUILD_DIR:-build}
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
+# The list's first part is what builds and tests need; after the "-- reference tools" marker
+# come tools only the media script and the benches use.
+packages_of() {
+  local part=$1
+  awk -v part="$part" '/^# -- reference tools/ { tools = 1; next }
+    /^[[:space:]]*#/ || /^[[:space:]]*$/ { next }
+    (part == "tools") == (tools == 1) { print $1 }' deps/debian-packages.txt
+}
+
 install_deps() {
-  mapfile -t packages < <(grep -v '^\s*#' deps/debian-packages.txt | grep -v '^\s*$')
+  mapfile -t packages < <(packages_of "${1:-build}")
   local missing=()
   for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -33,6 +43,7 @@ build() {
 
 case "${1:-}" in
   deps) install_deps ;;
+  tools) install_deps tools ;;
   build) install_deps; build ;;
   test)
     install_deps
@@ -45,7 +56,7 @@ case "${1:-}" in
     "$BUILD_DIR"/app/odvr info
     ;;
   *)
-    echo "usage: scripts/setup.sh demo|test|deps|build" >&2
+    echo "usage: scripts/setup.sh demo|test|deps|build|tools" >&2
     exit 2
     ;;
 esac
