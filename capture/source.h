@@ -1,0 +1,53 @@
+#pragma once
+// A source of frame sets from N cameras: recorded image sequences, video files, an
+// equirectangular video (N = 1), or live V4L2 / libcamera devices. Every source reports what
+// went wrong as events the caller can survive (a camera lost, a corrupt frame) and fails with
+// an odvr::Error only when it cannot start at all.
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "capture/frame.h"
+
+namespace odvr::capture {
+
+class Source {
+ public:
+  virtual ~Source() = default;
+  virtual int camera_count() const = 0;
+  virtual std::string description() const = 0;
+  // The next frame set; nullopt at the end of a recording, or for a live source when nothing
+  // arrived within `timeout` (then check events: every camera may be gone).
+  virtual std::optional<FrameSet> Next(std::chrono::milliseconds timeout = std::chrono::milliseconds(1000)) = 0;
+  // Live sources never end by themselves; recordings do.
+  virtual bool live() const = 0;
+  virtual std::vector<SourceEvent> TakeEvents() = 0;
+  virtual SourceStats stats() const = 0;
+};
+
+struct SourceOptions {
+  double fps = 25;  // timestamps of image sequences (index / fps)
+  double sync_tolerance_s = 0.010;
+  double stall_s = 0.5;
+  std::size_t queue_capacity = 4;
+  int width = 0, height = 0;  // live devices: requested size (0 = the device's default)
+  std::string pixel_format;   // V4L2: "MJPG" or "YUYV" (empty = MJPG if offered, else YUYV)
+};
+
+// Per-camera image-sequence directories (the layout of ../shared/data/street_*: camC/NNNNNN.jpg).
+std::unique_ptr<Source> OpenImageSequences(const std::vector<std::string>& camera_dirs, const SourceOptions& options);
+// One video file per camera, or a single equirectangular video.
+std::unique_ptr<Source> OpenVideoFiles(const std::vector<std::string>& paths, const SourceOptions& options);
+// Live V4L2 devices (/dev/videoN), one capture thread each.
+std::unique_ptr<Source> OpenV4l2(const std::vector<std::string>& devices, const SourceOptions& options);
+// Live libcamera cameras by id (empty: every camera libcamera lists).
+std::unique_ptr<Source> OpenLibcamera(const std::vector<std::string>& camera_ids, const SourceOptions& options);
+
+// Opens what `spec` names: a directory (its camera subdirectories cam0.., or the directory itself
+// if it holds images), a video file, comma-separated video files, "v4l2:/dev/video0,/dev/video1"
+// or "libcamera:[id,id]". Throws odvr::Error naming `spec` when it is none of these.
+std::unique_ptr<Source> OpenSource(const std::string& spec, const SourceOptions& options = {});
+
+}  // namespace odvr::capture
