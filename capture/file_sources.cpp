@@ -115,6 +115,13 @@ class ImageSequenceSource final : public Source {
     return set;
   }
 
+  bool Seek(long frame) override {
+    next_ = std::clamp(first_ + frame, first_, last_);
+    return true;
+  }
+  long frame_count() const override { return last_ - first_ + 1; }
+  double fps() const override { return options_.fps; }
+
   std::vector<SourceEvent> TakeEvents() override { return std::exchange(events_, {}); }
   SourceStats stats() const override { return stats_; }
 
@@ -208,6 +215,22 @@ class VideoFileSource final : public Source {
     set.index = stats_.sets_delivered++;
     return set;
   }
+
+  bool Seek(long frame) override {
+    for (auto& cam : cameras_) {
+      const long target = std::clamp(frame, 0L, std::max(0L, cam.expected_frames - 1));
+      cam.capture->set(cv::CAP_PROP_POS_FRAMES, static_cast<double>(target));
+      cam.read = target;
+      cam.ended = false;
+    }
+    return true;
+  }
+  long frame_count() const override {
+    long n = 0;
+    for (const auto& cam : cameras_) n = std::max(n, cam.expected_frames);
+    return n;
+  }
+  double fps() const override { return cameras_.front().fps; }
 
   std::vector<SourceEvent> TakeEvents() override { return std::exchange(events_, {}); }
   SourceStats stats() const override { return stats_; }

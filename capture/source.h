@@ -23,6 +23,14 @@ class Source {
   virtual std::optional<FrameSet> Next(std::chrono::milliseconds timeout = std::chrono::milliseconds(1000)) = 0;
   // Live sources never end by themselves; recordings do.
   virtual bool live() const = 0;
+  // Recordings: the next set delivered is frame `frame` (clamped); false for live sources.
+  virtual bool Seek(long frame) {
+    (void)frame;
+    return false;
+  }
+  // Frames in a recording (0 when unknown or live).
+  virtual long frame_count() const { return 0; }
+  virtual double fps() const { return 0; }
   virtual std::vector<SourceEvent> TakeEvents() = 0;
   virtual SourceStats stats() const = 0;
 };
