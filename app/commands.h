@@ -19,6 +19,10 @@ struct CommandSpec {
 const std::vector<CommandSpec>& Commands();
 
 CommandFn AddInfo(CLI::App* sub);
+CommandFn AddPlay(CLI::App* sub);
+
+// media/demo/street.mp4 beside the sources or the working directory; throws if absent.
+std::string DefaultDemoVideo();
 
 // Runs the whole command line; what main() returns. Errors end here as one line on stderr:
 // exit 2 for usage errors (unknown command, bad flag or value), 1 for everything else.

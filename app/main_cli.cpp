@@ -12,6 +12,7 @@ namespace odvr::app {
 const std::vector<CommandSpec>& Commands() {
   static const std::vector<CommandSpec> commands = {
       {"info", "Print the OpenGL context, its compute limits and library versions", AddInfo},
+      {"play", "Play a 360° video with free look (headless: render frames to PNG)", AddPlay},
   };
   return commands;
 }
@@ -75,6 +76,10 @@ int Main(int argc, char** argv) {
     for (auto& [sub, run] : runners) {
       if (sub->parsed()) return run();
     }
+    // No command: play the default demo, as the README's first command does.
+    CLI::App* play = app.get_subcommand("play");
+    for (auto& [sub, run] : runners)
+      if (sub == play) return run();
     std::cout << app.help();
     return 0;
   } catch (const UsageError& e) {

@@ -1,0 +1,80 @@
+#include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "app/commands.h"
+#include "app/player.h"
+#include "engine/core/error.h"
+
+namespace odvr::app {
+namespace {
+
+struct PlayCommand {
+  PlayerOptions options;
+  std::string size = "1280x720";
+  bool json = false;
+};
+
+void ParseSize(const std::string& text, int* w, int* h) {
+  int a = 0, b = 0;
+  char x = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X'))
+    throw UsageError("--size", "expects WIDTHxHEIGHT, got '" + text + "'");
+  *w = a;
+  *h = b;
+}
+
+int RunPlay(PlayCommand& c) {
+  ParseSize(c.size, &c.options.width, &c.options.height);
+  if (c.options.video.empty()) c.options.video = DefaultDemoVideo();
+  const PlayerReport r = RunPlayer(c.options);
+  if (c.json) {
+    std::cout << nlohmann::json{{"mode", r.mode},
+                                {"frames_shown", r.frames_shown},
+                                {"output_dir", r.output_dir},
+                                {"median_total_ms", r.median_total_ms},
+                                {"last_frame_ms",
+                                 {{"decode", r.last.decode_ms},
+                                  {"upload", r.last.upload_ms},
+                                  {"render", r.last.render_ms},
+                                  {"total", r.last.total_ms}}}}
+                     .dump(2)
+              << "\n";
+  } else if (r.mode == "headless") {
+    std::cout << "no display: rendered " << r.frames_shown << " frames to "
+              << std::filesystem::absolute(r.output_dir).string() << " (median " << r.median_total_ms
+              << " ms per frame)\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+std::string DefaultDemoVideo() {
+  for (const std::filesystem::path& base : {std::filesystem::path(ODVR_SOURCE_DIR), std::filesystem::current_path()}) {
+    const auto path = base / "media" / "demo" / "street.mp4";
+    if (std::filesystem::exists(path)) return path.string();
+  }
+  throw Error("media/demo/street.mp4", "the default demo is missing (regenerate it: see media/README.md)");
+}
+
+CommandFn AddPlay(CLI::App* sub) {
+  auto c = std::make_shared<PlayCommand>();
+  auto& o = c->options;
+  sub->add_option("video,--video", o.video, "Equirectangular video or image sequence (default: the demo in media/)");
+  sub->add_option("--size", c->size, "Window or output size WIDTHxHEIGHT")->capture_default_str();
+  sub->add_flag("--headless", o.headless, "Render frames to PNG files instead of opening a window");
+  sub->add_option("--frames", o.headless_frames, "Headless: how many frames (default: all)");
+  sub->add_option("--out", o.out_dir, "Headless: output directory")->capture_default_str();
+  sub->add_option("--exposure", o.exposure, "Exposure multiplier")->capture_default_str();
+  sub->add_option("--yaw", o.view.yaw_deg, "Initial view yaw in degrees (positive: right)");
+  sub->add_option("--pitch", o.view.pitch_deg, "Initial view pitch in degrees (positive: up)");
+  sub->add_option("--fov", o.view.fov_deg, "Initial vertical field of view in degrees (30-150)");
+  sub->add_flag("!--no-loop", o.loop, "Stop at the end instead of looping");
+  sub->add_option("--quit-after", o.quit_after_s, "Window: close after this many seconds");
+  sub->add_option("--screenshot", o.screenshot, "Window: save the last frame shown to this PNG");
+  sub->add_flag("--json", c->json, "Print a JSON report");
+  return [c] { return RunPlay(*c); };
+}
+
+}  // namespace odvr::app
