@@ -1,0 +1,152 @@
+#include "engine/image/image_io.h"
+
+#include <OpenImageIO/imageio.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "engine/core/atomic_file.h"
+#include "engine/core/error.h"
+
+namespace odvr::image {
+
+namespace OIIO = OIIO_NAMESPACE;
+
+float SrgbToLinear(float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); }
+
+float LinearToSrgb(float v) {
+  v = std::clamp(v, 0.0f, 1.0f);
+  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+
+std::pair<long, long> SanitizePixels(sphere::EquirectImage* image) {
+  long bad = 0, negative = 0;
+  for (std::size_t p = 0; p < image->pixel_count(); ++p) {
+    float* c = &image->rgb[3 * p];
+    bool is_bad = false, is_negative = false;
+    for (int k = 0; k < 3; ++k) {
+      if (!std::isfinite(c[k])) {
+        c[k] = 0;
+        is_bad = true;
+      } else if (c[k] < 0) {
+        c[k] = 0;
+        is_negative = true;
+      }
+    }
+    bad += is_bad;
+    negative += is_negative && !is_bad;
+  }
+  return {bad, negative};
+}
+
+sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOptions& options, LoadReport* report) {
+  const std::string name = path.string();
+  if (!std::filesystem::exists(path)) throw Error(name, "no such file");
+  if (std::filesystem::is_directory(path)) throw Error(name, "is a directory, not an image");
+  auto in = OIIO::ImageInput::open(name);
+  if (!in) {
+    std::string why = OIIO::geterror();
+    if (why.empty()) why = "not an image OpenImageIO can read";
+    std::replace(why.begin(), why.end(), '\n', ' ');
+    throw Error(name, "cannot read: " + why);
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  LoadReport r;
+  r.file_width = spec.width;
+  r.file_height = spec.height;
+  r.channels = spec.nchannels;
+  r.format = in->format_name();
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) throw Error(name, "empty image");
+  if (spec.width < 2 || spec.height < 2)
+    throw Error(name,
+                "is " + std::to_string(spec.width) + "x" + std::to_string(spec.height) + ": too small for a frame");
+  if (options.require_equirect && spec.width != 2 * spec.height)
+    throw Error(name, "is " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                          ": an equirectangular frame must be twice as wide as high");
+  if (static_cast<long long>(spec.width) * spec.height > (1LL << 31))
+    throw Error(name, "is absurdly large (" + std::to_string(spec.width) + "x" + std::to_string(spec.height) + ")");
+
+  int factor = 1;
+  while (spec.width / factor > options.max_width) factor *= 2;
+  if (spec.width % factor || spec.height % factor)
+    throw Error(name, "size " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                          " cannot be downsampled by " + std::to_string(factor) + " to fit max width " +
+                          std::to_string(options.max_width));
+  r.downsample_factor = factor;
+  const bool is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT || spec.format.basetype == OIIO::TypeDesc::HALF ||
+                        spec.format.basetype == OIIO::TypeDesc::DOUBLE;
+  const std::string colorspace = spec.get_string_attribute("oiio:ColorSpace");
+  r.linearized_from_srgb = !is_float && colorspace != "Linear" && colorspace != "linear";
+
+  sphere::EquirectImage out(spec.width / factor, spec.height / factor);
+  const int nch = spec.nchannels;
+  std::vector<float> rows(static_cast<std::size_t>(spec.width) * factor * nch);
+  std::array<float, 256> lut{};
+  if (spec.format.basetype == OIIO::TypeDesc::UINT8)
+    for (int i = 0; i < 256; ++i) lut[static_cast<std::size_t>(i)] = SrgbToLinear(i / 255.0f);
+  const float scale = 1.0f / static_cast<float>(factor * factor);
+  for (int out_row = 0; out_row < out.height; ++out_row) {
+    const int y0 = out_row * factor;
+    if (!in->read_scanlines(0, 0, y0 + spec.y, y0 + spec.y + factor, 0, 0, nch, OIIO::TypeDesc::FLOAT, rows.data())) {
+      std::string why = in->geterror();
+      std::replace(why.begin(), why.end(), '\n', ' ');
+      throw Error(name, "corrupt or truncated at row " + std::to_string(y0) + (why.empty() ? "" : ": " + why));
+    }
+    float* dst = out.at(0, out_row);
+    for (int dy = 0; dy < factor; ++dy) {
+      const float* src = &rows[static_cast<std::size_t>(dy) * spec.width * nch];
+      for (int x = 0; x < spec.width; ++x, src += nch) {
+        float c[3];
+        for (int k = 0; k < 3; ++k) c[k] = src[nch >= 3 ? k : 0];  // grey expands to RGB
+        if (r.linearized_from_srgb) {
+          for (float& v : c) {
+            if (spec.format.basetype == OIIO::TypeDesc::UINT8) {
+              v = lut[static_cast<std::size_t>(std::clamp(std::lround(v * 255.0f), 0L, 255L))];
+            } else {
+              v = SrgbToLinear(v);
+            }
+          }
+        }
+        float* d = dst + 3 * (x / factor);
+        d[0] += c[0] * scale;
+        d[1] += c[1] * scale;
+        d[2] += c[2] * scale;
+      }
+    }
+  }
+  in->close();
+  const auto [bad, negative] = SanitizePixels(&out);
+  r.nan_or_inf_pixels = bad;
+  r.negative_pixels = negative;
+  if (bad || negative) spdlog::warn("{}: clamped {} NaN/Inf and {} negative pixels to 0", name, bad, negative);
+  if (report) *report = r;
+  return out;
+}
+
+void SaveImage(const std::filesystem::path& path, const sphere::EquirectImage& image) {
+  if (image.empty()) throw Error(path.string(), "refusing to write an empty image");
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+  const bool hdr = ext == ".exr" || ext == ".hdr";
+  WriteFileAtomically(path, [&](const std::filesystem::path& tmp) {
+    auto out = OIIO::ImageOutput::create(tmp.string());
+    if (!out) throw Error(path.string(), "no writer for '" + ext + "'");
+    if (hdr) {
+      OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::FLOAT);
+      if (!out->open(tmp.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, image.rgb.data()))
+        throw Error(path.string(), "cannot write: " + out->geterror());
+    } else {
+      std::vector<unsigned char> bytes(image.rgb.size());
+      for (std::size_t i = 0; i < bytes.size(); ++i)
+        bytes[i] = static_cast<unsigned char>(std::lround(LinearToSrgb(image.rgb[i]) * 255.0f));
+      OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
+      if (!out->open(tmp.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()))
+        throw Error(path.string(), "cannot write: " + out->geterror());
+    }
+    out->close();
+  });
+}
+
+}  // namespace odvr::image

@@ -1,0 +1,45 @@
+#pragma once
+// Image files in and out, through OpenImageIO: EXR, HDR, PNG, JPEG (and what else it reads).
+// In memory everything is linear-light float RGB (DESIGN.md §3): 8- and 16-bit files are taken
+// as sRGB and linearized, float files as linear. Bad pixels (NaN, ±Inf, negative: lossy EXR
+// compression leaves large negative lobes around bright sources) are clamped to 0 and counted,
+// never passed on.
+#include <filesystem>
+#include <string>
+
+#include "engine/sphere/equirect_image.h"
+
+namespace odvr::image {
+
+struct LoadOptions {
+  // Wider inputs are box-downsampled while they are read, a few rows at a time, so a 16k-wide
+  // frame never sits in memory at full size: peak memory ≈ output + factor rows of input.
+  int max_width = 8192;
+  bool require_equirect = false;  // width must be 2 × height
+};
+
+struct LoadReport {
+  int file_width = 0, file_height = 0, channels = 0;
+  int downsample_factor = 1;
+  bool linearized_from_srgb = false;
+  long nan_or_inf_pixels = 0;
+  long negative_pixels = 0;
+  std::string format;  // OpenImageIO's format name
+};
+
+// Throws odvr::Error naming the file: missing, unreadable, corrupt, empty, too small (1×1) or
+// (with require_equirect) not 2:1.
+sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOptions& options = {},
+                                LoadReport* report = nullptr);
+
+// Replaces NaN, ±Inf and negative values by 0; returns {nan_or_inf, negative} counts (pixels).
+std::pair<long, long> SanitizePixels(sphere::EquirectImage* image);
+
+// Written atomically. EXR keeps linear float; PNG/JPEG are sRGB-encoded 8-bit (clamped).
+void SaveImage(const std::filesystem::path& path, const sphere::EquirectImage& image);
+
+// sRGB transfer function, both ways.
+float SrgbToLinear(float v);
+float LinearToSrgb(float v);
+
+}  // namespace odvr::image

@@ -1,0 +1,110 @@
+#include "engine/image/image_io.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "engine/core/error.h"
+
+namespace odvr::image {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ImageIo : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("odvr_image_" + std::to_string(::getpid()) +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string ErrorOf(const fs::path& p, LoadOptions o = {}) {
+    try {
+      LoadImage(p, o);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  }
+  fs::path dir_;
+};
+
+TEST_F(ImageIo, ExrRoundTripKeepsHdrValuesAndPngIsSrgb) {
+  sphere::EquirectImage img(8, 4);
+  img.at(1, 1)[0] = 1e5f;  // a sun
+  img.at(2, 2)[1] = 0.5f;
+  SaveImage(dir_ / "a.exr", img);
+  LoadReport r;
+  const auto back = LoadImage(dir_ / "a.exr", {}, &r);
+  EXPECT_EQ(back.width, 8);
+  EXPECT_FLOAT_EQ(back.at(1, 1)[0], 1e5f);
+  EXPECT_FALSE(r.linearized_from_srgb);
+
+  SaveImage(dir_ / "a.png", img);
+  const auto png = LoadImage(dir_ / "a.png", {}, &r);
+  EXPECT_TRUE(r.linearized_from_srgb);
+  EXPECT_NEAR(png.at(2, 2)[1], 0.5f, 0.005f);  // through 8-bit sRGB and back
+  EXPECT_FLOAT_EQ(png.at(1, 1)[0], 1.0f);      // clipped, as an LDR file must
+}
+
+TEST_F(ImageIo, NanInfAndNegativePixelsAreClampedAndCounted) {
+  sphere::EquirectImage img(4, 2, 1.0f);
+  img.at(0, 0)[0] = std::nanf("");
+  img.at(1, 0)[2] = INFINITY;
+  img.at(2, 1)[1] = -3894.0f;
+  SaveImage(dir_ / "bad.exr", img);
+  LoadReport r;
+  const auto back = LoadImage(dir_ / "bad.exr", {}, &r);
+  EXPECT_EQ(r.nan_or_inf_pixels, 2);
+  EXPECT_EQ(r.negative_pixels, 1);
+  for (float v : back.rgb) {
+    EXPECT_TRUE(std::isfinite(v));
+    EXPECT_GE(v, 0.0f);
+  }
+}
+
+TEST_F(ImageIo, SharedEnvMapsWithNegativeLobesLoadClean) {
+  const fs::path sky = fs::path(ODVR_SHARED_DIR) / "data/env/esplanade.exr";
+  if (!fs::exists(sky)) GTEST_SKIP() << "needs ../shared/data/env (absent in a user's clone)";
+  LoadReport r;
+  const auto img = LoadImage(sky, {}, &r);
+  EXPECT_EQ(img.width, 512);
+  EXPECT_EQ(img.height, 256);
+  EXPECT_GT(r.negative_pixels, 0);  // the DWAB compression artefacts the data README warns of
+  EXPECT_GE(*std::min_element(img.rgb.begin(), img.rgb.end()), 0.0f);
+}
+
+TEST_F(ImageIo, WideInputsAreDownsampledWhileReading) {
+  sphere::EquirectImage img(64, 32, 2.0f);
+  img.at(0, 0)[0] = 2.0f + 15.0f;  // one bright pixel: its energy must survive the box filter
+  SaveImage(dir_ / "wide.exr", img);
+  LoadReport r;
+  LoadOptions o;
+  o.max_width = 16;
+  const auto small = LoadImage(dir_ / "wide.exr", o, &r);
+  EXPECT_EQ(r.downsample_factor, 4);
+  EXPECT_EQ(small.width, 16);
+  EXPECT_NEAR(small.at(0, 0)[0], 2.0f + 15.0f / 16, 1e-5);
+}
+
+TEST_F(ImageIo, BadFilesAreOneLineErrorsNamingTheFile) {
+  EXPECT_NE(ErrorOf(dir_ / "missing.exr").find("missing.exr: no such file"), std::string::npos);
+  std::ofstream(dir_ / "garbage.exr") << "this is not an exr";
+  EXPECT_NE(ErrorOf(dir_ / "garbage.exr").find("garbage.exr"), std::string::npos);
+  SaveImage(dir_ / "tiny.exr", sphere::EquirectImage(1, 1, 1.0f));
+  EXPECT_NE(ErrorOf(dir_ / "tiny.exr").find("too small"), std::string::npos);
+  SaveImage(dir_ / "square.exr", sphere::EquirectImage(8, 8, 1.0f));
+  LoadOptions equirect;
+  equirect.require_equirect = true;
+  EXPECT_NE(ErrorOf(dir_ / "square.exr", equirect).find("twice as wide"), std::string::npos);
+  // A truncated PNG.
+  SaveImage(dir_ / "t.png", sphere::EquirectImage(64, 32, 0.3f));
+  fs::resize_file(dir_ / "t.png", fs::file_size(dir_ / "t.png") / 2);
+  EXPECT_NE(ErrorOf(dir_ / "t.png").find("t.png"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace odvr::image
