@@ -1,0 +1,35 @@
+#pragma once
+// Frame → lighting model: peaks out first, then the residual transform of what is left.
+#include <string>
+
+#include "engine/lighting/peak_detector.h"
+#include "engine/lighting/residual_transform.h"
+
+namespace odvr::lighting {
+
+struct LightingOptions {
+  ResidualTransformOptions transform;
+  PeakDetectorOptions peaks;
+  bool detect_peaks = true;
+};
+
+struct LightingReport {
+  TransformReport transform;
+  PeakDetection peak_detection;  // its residue is released after use
+  double peaks_ms = 0;
+  double total_ms = 0;
+};
+
+class LightingBuilder {
+ public:
+  explicit LightingBuilder(LightingOptions options = {});
+  SgLighting Build(const sphere::EquirectImage& frame, LightingReport* report = nullptr);
+  ResidualTransform& transform() { return transform_; }
+  const LightingOptions& options() const { return options_; }
+
+ private:
+  LightingOptions options_;
+  ResidualTransform transform_;
+};
+
+}  // namespace odvr::lighting

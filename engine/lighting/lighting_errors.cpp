@@ -1,0 +1,156 @@
+#include "engine/lighting/lighting_errors.h"
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+
+#include "engine/core/error.h"
+#include "engine/sphere/equirect.h"
+#include "engine/sphere/healpix.h"
+#include "engine/sphere/resample.h"
+
+namespace odvr::lighting {
+namespace {
+
+constexpr double kDeltaLambda = 300;
+
+// Resampled to at most `width` (area-preserving), for numerical integration.
+sphere::EquirectImage Grid(const sphere::EquirectImage& image, int width) {
+  if (image.width <= width) return image;
+  return sphere::ResampleArea(image, width, width / 2);
+}
+
+// Σ_p I(p) K(d·ω_p) dA_p for each direction d, with kernel K(cos) (zero below `cos_min`).
+std::vector<glm::dvec3> Convolve(const sphere::EquirectImage& g, const std::vector<glm::dvec3>& dirs,
+                                 const std::function<double(double)>& kernel, double cos_min) {
+  std::vector<glm::dvec3> pix_dir(g.pixel_count());
+  std::vector<double> da(static_cast<std::size_t>(g.height));
+  for (int row = 0; row < g.height; ++row) {
+    da[static_cast<std::size_t>(row)] = sphere::EquirectPixelSolidAngle(row, g.width, g.height);
+    for (int col = 0; col < g.width; ++col)
+      pix_dir[static_cast<std::size_t>(row) * g.width + col] =
+          sphere::EquirectPixelDirection(col, row, g.width, g.height);
+  }
+  std::vector<glm::dvec3> out(dirs.size(), glm::dvec3(0));
+  for (std::size_t i = 0; i < dirs.size(); ++i) {
+    glm::dvec3 acc(0);
+    for (int row = 0; row < g.height; ++row) {
+      glm::dvec3 row_acc(0);
+      for (int col = 0; col < g.width; ++col) {
+        const std::size_t p = static_cast<std::size_t>(row) * g.width + col;
+        const double c = glm::dot(dirs[i], pix_dir[p]);
+        if (c <= cos_min) continue;
+        const float* v = g.at(col, row);
+        row_acc += kernel(c) * glm::dvec3(v[0], v[1], v[2]);
+      }
+      acc += row_acc * da[static_cast<std::size_t>(row)];
+    }
+    out[i] = acc;
+  }
+  return out;
+}
+
+double CosineKernel(double c) { return std::max(0.0, c); }
+
+}  // namespace
+
+Convolutions LightingErrorEvaluator::ConvolveImage(const sphere::EquirectImage& image,
+                                                   const std::vector<glm::dvec3>& dirs) {
+  Convolutions out;
+  const auto coarse = Grid(image, 256);
+  out.diffuse = Convolve(coarse, dirs, CosineKernel, 0.0);
+  out.glossy20 = Convolve(
+      coarse, dirs, [](double c) { return std::exp(20 * (c - 1)); }, 1 + std::log(1e-7) / 20);
+  const auto fine = Grid(image, 512);
+  out.glossy200 = Convolve(
+      fine, dirs, [](double c) { return std::exp(200 * (c - 1)); }, 1 + std::log(1e-7) / 200);
+  return out;
+}
+
+Convolutions LightingErrorEvaluator::ConvolveModel(const SgLighting& model, const std::vector<glm::dvec3>& dirs) {
+  Convolutions out;
+  out.diffuse.assign(dirs.size(), glm::dvec3(0));
+  out.glossy20.assign(dirs.size(), glm::dvec3(0));
+  out.glossy200.assign(dirs.size(), glm::dvec3(0));
+  const auto sgs = model.ToSgs();
+  // SG kernels: exact. ∫ G_i K_d = IntegralOfProduct per channel (amplitudes are linear).
+  for (std::size_t i = 0; i < dirs.size(); ++i) {
+    const Sg k20{dirs[i], 20, 1}, k200{dirs[i], 200, 1};
+    for (const auto& g : sgs) {
+      const Sg unit{g.axis, g.lambda, 1};
+      out.glossy20[i] += glm::dvec3(g.amplitude) * IntegralOfProduct(unit, k20);
+      out.glossy200[i] += glm::dvec3(g.amplitude) * IntegralOfProduct(unit, k200);
+    }
+  }
+  // Cosine: broad SGs rendered on a grid and integrated; sharp ones as deltas of their energy.
+  SgLighting broad;
+  broad.constant = model.constant;
+  sphere::EquirectImage grid(256, 128);
+  for (const auto& g : sgs) {
+    if (g.lambda == 0) continue;
+    if (g.lambda < kDeltaLambda) {
+      AddSgToImage(g, &grid, 1e-6);
+    } else {
+      const double energy = Integral(Sg{g.axis, g.lambda, 1});
+      for (std::size_t i = 0; i < dirs.size(); ++i)
+        out.diffuse[i] += glm::dvec3(g.amplitude) * energy * std::max(0.0, glm::dot(dirs[i], g.axis));
+    }
+  }
+  const auto grid_conv = Convolve(grid, dirs, CosineKernel, 0.0);
+  for (std::size_t i = 0; i < dirs.size(); ++i)
+    out.diffuse[i] += grid_conv[i] + glm::dvec3(model.constant) * sphere::kPi;  // ∫ max(0, n·ω) dω = π
+  return out;
+}
+
+LightingErrorEvaluator::LightingErrorEvaluator(const sphere::EquirectImage& input) : input_(&input) {
+  if (input.empty()) throw Error("lighting errors", "empty input");
+  directions_ = sphere::Healpix(3).centres();
+  input_conv_ = ConvolveImage(input, directions_);
+}
+
+double RelativeL2(const sphere::EquirectImage& a, const sphere::EquirectImage& b) {
+  if (a.width != b.width || a.height != b.height) throw Error("relative L2", "image sizes differ");
+  double num = 0, den = 0;
+  for (int row = 0; row < a.height; ++row) {
+    const double da = sphere::EquirectPixelSolidAngle(row, a.width, a.height);
+    const float *p = a.at(0, row), *q = b.at(0, row);
+    double n = 0, d = 0;
+    for (int i = 0; i < a.width * 3; ++i) {
+      const double diff = static_cast<double>(p[i]) - q[i];
+      n += diff * diff;
+      d += static_cast<double>(p[i]) * p[i];
+    }
+    num += n * da;
+    den += d * da;
+  }
+  return den > 0 ? std::sqrt(num / den) : (num > 0 ? 1.0 : 0.0);
+}
+
+LightingErrors LightingErrorEvaluator::Compare(const Convolutions& conv, double rel_l2) const {
+  auto rel = [](const std::vector<glm::dvec3>& ref, const std::vector<glm::dvec3>& est) {
+    double num = 0, den = 0;
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+      const glm::dvec3 d = ref[i] - est[i];
+      num += glm::dot(d, d);
+      den += glm::dot(ref[i], ref[i]);
+    }
+    return den > 0 ? std::sqrt(num / den) : (num > 0 ? 1.0 : 0.0);
+  };
+  LightingErrors e;
+  e.rel_l2 = rel_l2;
+  e.diffuse = rel(input_conv_.diffuse, conv.diffuse);
+  e.glossy20 = rel(input_conv_.glossy20, conv.glossy20);
+  e.glossy200 = rel(input_conv_.glossy200, conv.glossy200);
+  return e;
+}
+
+LightingErrors LightingErrorEvaluator::Evaluate(const SgLighting& model) const {
+  const auto recon = model.Reconstruct(input_->width, input_->height);
+  return Compare(ConvolveModel(model, directions_), RelativeL2(*input_, recon));
+}
+
+LightingErrors LightingErrorEvaluator::Evaluate(const Convolutions& conv, const sphere::EquirectImage& recon) const {
+  return Compare(conv, RelativeL2(*input_, recon));
+}
+
+}  // namespace odvr::lighting

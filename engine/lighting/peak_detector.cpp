@@ -1,0 +1,303 @@
+#include "engine/lighting/peak_detector.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <numeric>
+#include <opencv2/imgproc.hpp>
+
+#include "engine/core/error.h"
+#include "engine/sphere/equirect.h"
+
+namespace odvr::lighting {
+namespace {
+
+struct UnionFind {
+  std::vector<int> parent;
+  explicit UnionFind(int n) : parent(static_cast<std::size_t>(n)) { std::iota(parent.begin(), parent.end(), 0); }
+  int Find(int x) {
+    while (parent[static_cast<std::size_t>(x)] != x)
+      x = parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+    return x;
+  }
+  void Join(int a, int b) {
+    a = Find(a);
+    b = Find(b);
+    if (a != b) parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
+  }
+};
+
+double Luminance(const float* p) { return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]; }
+
+// Fits one SG to pixels (with their excess energies): axis, λ from the spread, μ from the energy.
+RgbSg FitSg(const std::vector<int>& pixels, const std::vector<glm::dvec3>& excess, const sphere::EquirectImage& f,
+            double pixel_angle) {
+  glm::dvec3 axis(0), energy(0);
+  for (std::size_t i = 0; i < pixels.size(); ++i) {
+    const int p = pixels[i];
+    const glm::dvec3 d = sphere::EquirectPixelDirection(p % f.width, p / f.width, f.width, f.height);
+    const double e = excess[i].x + excess[i].y + excess[i].z;
+    axis += e * d;
+    energy += excess[i];
+  }
+  RgbSg g;
+  if (glm::length(axis) == 0) return g;
+  g.axis = glm::normalize(axis);
+  double spread = 0, total = 0;
+  for (std::size_t i = 0; i < pixels.size(); ++i) {
+    const int p = pixels[i];
+    const glm::dvec3 d = sphere::EquirectPixelDirection(p % f.width, p / f.width, f.width, f.height);
+    const double e = excess[i].x + excess[i].y + excess[i].z;
+    spread += e * (1 - glm::dot(d, g.axis));
+    total += e;
+  }
+  spread = total > 0 ? spread / total : 0;
+  g.lambda = std::min(1e7, 1.0 / (spread + pixel_angle * pixel_angle / 12));
+  const double integral = Integral(Sg{g.axis, g.lambda, 1});
+  g.amplitude = glm::vec3(energy / integral);
+  return g;
+}
+
+}  // namespace
+
+void PeakDetectorOptions::Check() const {
+  if (!(threshold_factor > 1)) throw Error("peak threshold", "must exceed 1 (× the mean radiance)");
+  if (!(max_area_fraction > 0 && max_area_fraction < 0.5)) throw Error("peak area", "must be in (0, 0.5)");
+  if (max_sgs_per_peak < 1 || max_sgs_per_peak > 3) throw Error("SGs per peak", "must be 1..3");
+  if (max_peaks < 0) throw Error("max peaks", "must be >= 0");
+}
+
+PeakDetection DetectPeaks(const sphere::EquirectImage& frame, const PeakDetectorOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  options.Check();
+  PeakDetection out;
+  out.residue = frame;
+  const int w = frame.width, h = frame.height;
+  if (w < 4 || h < 2) throw Error("peak detection", "frame too small");
+
+  double mean = 0, max_value = 0;
+  std::vector<double> da(static_cast<std::size_t>(h));
+  for (int row = 0; row < h; ++row) {
+    da[static_cast<std::size_t>(row)] = sphere::EquirectPixelSolidAngle(row, w, h);
+    for (int col = 0; col < w; ++col) {
+      const float* p = frame.at(col, row);
+      mean += Luminance(p) * da[static_cast<std::size_t>(row)];
+      max_value = std::max({max_value, double(p[0]), double(p[1]), double(p[2])});
+    }
+  }
+  mean /= 4 * sphere::kPi;
+  out.ldr = max_value <= 1.0 + 1e-4;
+  out.threshold = out.ldr ? options.ldr_clip_level : options.threshold_factor * mean;
+  if (!(mean > 0)) {
+    out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return out;
+  }
+
+  cv::Mat mask(h, w, CV_8U, cv::Scalar(0));
+  for (int row = 0; row < h; ++row)
+    for (int col = 0; col < w; ++col) {
+      const float* p = frame.at(col, row);
+      const bool bright = out.ldr ? std::min({p[0], p[1], p[2]}) >= out.threshold : Luminance(p) > out.threshold;
+      if (bright) mask.at<unsigned char>(row, col) = 1;
+    }
+  cv::Mat labels;
+  const int n = cv::connectedComponents(mask, labels, 8, CV_32S);
+  if (n <= 1) {
+    out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return out;
+  }
+  // The sphere has no edges: join components across the seam and around each pole.
+  UnionFind uf(n);
+  for (int row = 0; row < h; ++row) {
+    const int a = labels.at<int>(row, 0);
+    if (!a) continue;
+    for (int dr = -1; dr <= 1; ++dr) {
+      const int r2 = row + dr;
+      if (r2 < 0 || r2 >= h) continue;
+      const int b = labels.at<int>(r2, w - 1);
+      if (b) uf.Join(a, b);
+    }
+  }
+  for (int row : {0, h - 1}) {
+    int first = 0;
+    for (int col = 0; col < w; ++col) {
+      const int a = labels.at<int>(row, col);
+      if (!a) continue;
+      if (first)
+        uf.Join(first, a);
+      else
+        first = a;
+    }
+  }
+  std::vector<std::vector<int>> components(static_cast<std::size_t>(n));
+  for (int row = 0; row < h; ++row)
+    for (int col = 0; col < w; ++col)
+      if (const int l = labels.at<int>(row, col))
+        components[static_cast<std::size_t>(uf.Find(l))].push_back(row * w + col);
+
+  // Only the brightest components are worth a peak: rank by rough energy first, so a noisy
+  // frame with thousands of bright specks costs no more than a clean one.
+  std::vector<std::pair<double, std::size_t>> rough;
+  for (std::size_t i = 0; i < components.size(); ++i) {
+    if (components[i].empty()) continue;
+    double e = 0;
+    for (int p : components[i]) e += Luminance(frame.at(p % w, p / w)) * da[static_cast<std::size_t>(p / w)];
+    rough.emplace_back(e, i);
+  }
+  std::sort(rough.rbegin(), rough.rend());
+  if (rough.size() > static_cast<std::size_t>(2 * options.max_peaks + 2))
+    rough.resize(static_cast<std::size_t>(2 * options.max_peaks + 2));
+  std::vector<std::vector<int>> ranked;
+  for (const auto& [e, i] : rough) ranked.push_back(std::move(components[i]));
+  components = std::move(ranked);
+
+  const double pixel_angle = sphere::kPi / h;
+  struct Candidate {
+    DetectedPeak peak;
+    std::vector<int> pixels;
+    glm::vec3 background;
+  };
+  std::vector<Candidate> candidates;
+  for (auto& pixels : components) {
+    if (pixels.empty()) continue;
+    double area = 0;
+    for (int p : pixels) area += da[static_cast<std::size_t>(p / w)];
+    if (area > options.max_area_fraction * 4 * sphere::kPi) continue;  // a bright wall, not a light
+    // The surrounding level: mean of the one-pixel ring around the component.
+    std::vector<unsigned char> in(static_cast<std::size_t>(w) * h, 0);
+    for (int p : pixels) in[static_cast<std::size_t>(p)] = 1;
+    glm::dvec3 ring(0);
+    int ring_n = 0;
+    for (int p : pixels) {
+      const int row = p / w, col = p % w;
+      for (int dr = -1; dr <= 1; ++dr)
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int r2 = row + dr;
+          if (r2 < 0 || r2 >= h) continue;
+          const int c2 = ((col + dc) % w + w) % w;
+          const int q = r2 * w + c2;
+          if (in[static_cast<std::size_t>(q)] == 1) continue;
+          in[static_cast<std::size_t>(q)] = 2;  // count each ring pixel once
+          const float* v = frame.at(c2, r2);
+          ring += glm::dvec3(v[0], v[1], v[2]);
+          ++ring_n;
+        }
+    }
+    Candidate c;
+    c.background = ring_n ? glm::vec3(ring / double(ring_n)) : glm::vec3(0);
+    std::vector<glm::dvec3> excess(pixels.size());
+    for (std::size_t i = 0; i < pixels.size(); ++i) {
+      const int p = pixels[i];
+      const float* v = frame.at(p % w, p / w);
+      excess[i] = glm::max(glm::dvec3(v[0], v[1], v[2]) - glm::dvec3(c.background), glm::dvec3(0)) *
+                  da[static_cast<std::size_t>(p / w)];
+      c.peak.energy += excess[i];
+    }
+    c.peak.pixels = static_cast<int>(pixels.size());
+    if (c.peak.energy == glm::dvec3(0)) continue;
+
+    // Elongated? Principal axes of the pixel directions about the mean: split by k-means.
+    const RgbSg whole = FitSg(pixels, excess, frame, pixel_angle);
+    int k = 1;
+    if (options.max_sgs_per_peak > 1 && pixels.size() >= 6) {
+      glm::dvec3 t1 = glm::normalize(
+          glm::cross(whole.axis, std::abs(whole.axis.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0)));
+      glm::dvec3 t2 = glm::cross(whole.axis, t1);
+      double sxx = 0, syy = 0, sxy = 0;
+      for (int p : pixels) {
+        const glm::dvec3 d = sphere::EquirectPixelDirection(p % w, p / w, w, h);
+        const double x = glm::dot(d, t1), y = glm::dot(d, t2);
+        sxx += x * x;
+        syy += y * y;
+        sxy += x * y;
+      }
+      const double tr = sxx + syy, det = sxx * syy - sxy * sxy;
+      const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
+      const double l1 = tr / 2 + disc, l2 = std::max(tr / 2 - disc, 1e-30);
+      const double ratio = std::sqrt(l1 / l2);
+      if (ratio > options.elongation_for_split)
+        k = std::min(options.max_sgs_per_peak, ratio > 2 * options.elongation_for_split ? 3 : 2);
+    }
+    if (k == 1) {
+      c.peak.sgs.push_back(whole);
+    } else {
+      // k-means on directions, seeded along the component's extent.
+      std::vector<glm::dvec3> dirs(pixels.size());
+      for (std::size_t i = 0; i < pixels.size(); ++i)
+        dirs[i] = sphere::EquirectPixelDirection(pixels[i] % w, pixels[i] / w, w, h);
+      std::vector<glm::dvec3> centres;
+      for (int j = 0; j < k; ++j)
+        centres.push_back(dirs[(pixels.size() - 1) * static_cast<std::size_t>(j) / static_cast<std::size_t>(k - 1)]);
+      std::vector<int> assign(pixels.size(), 0);
+      for (int it = 0; it < 10; ++it) {
+        for (std::size_t i = 0; i < dirs.size(); ++i) {
+          int best = 0;
+          for (int j = 1; j < k; ++j)
+            if (glm::dot(dirs[i], centres[static_cast<std::size_t>(j)]) >
+                glm::dot(dirs[i], centres[static_cast<std::size_t>(best)]))
+              best = j;
+          assign[i] = best;
+        }
+        std::vector<glm::dvec3> sums(static_cast<std::size_t>(k), glm::dvec3(0));
+        for (std::size_t i = 0; i < dirs.size(); ++i) sums[static_cast<std::size_t>(assign[i])] += dirs[i];
+        for (int j = 0; j < k; ++j)
+          if (glm::length(sums[static_cast<std::size_t>(j)]) > 0)
+            centres[static_cast<std::size_t>(j)] = glm::normalize(sums[static_cast<std::size_t>(j)]);
+      }
+      for (int j = 0; j < k; ++j) {
+        std::vector<int> px;
+        std::vector<glm::dvec3> ex;
+        for (std::size_t i = 0; i < pixels.size(); ++i)
+          if (assign[i] == j) {
+            px.push_back(pixels[i]);
+            ex.push_back(excess[i]);
+          }
+        if (!px.empty()) c.peak.sgs.push_back(FitSg(px, ex, frame, pixel_angle));
+      }
+    }
+    c.pixels = std::move(pixels);
+    candidates.push_back(std::move(c));
+  }
+  // The brightest first; keep max_peaks.
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    return a.peak.energy.x + a.peak.energy.y + a.peak.energy.z > b.peak.energy.x + b.peak.energy.y + b.peak.energy.z;
+  });
+  if (static_cast<int>(candidates.size()) > options.max_peaks)
+    candidates.resize(static_cast<std::size_t>(options.max_peaks));
+
+  for (auto& c : candidates) {
+    for (int p : c.pixels) {
+      float* r = out.residue.at(p % w, p / w);
+      r[0] = c.background.x;
+      r[1] = c.background.y;
+      r[2] = c.background.z;
+    }
+    if (out.ldr) {
+      // Clipped: scale the peak so its irradiance on a surface facing it is the prior ratio
+      // times the sky's (the residue's) irradiance on that surface.
+      const glm::dvec3 axis = c.peak.sgs.front().axis;
+      glm::dvec3 sky(0);
+      for (int row = 0; row < h; ++row)
+        for (int col = 0; col < w; ++col) {
+          const double cosine = glm::dot(sphere::EquirectPixelDirection(col, row, w, h), axis);
+          if (cosine <= 0) continue;
+          const float* v = out.residue.at(col, row);
+          sky += cosine * da[static_cast<std::size_t>(row)] * glm::dvec3(v[0], v[1], v[2]);
+        }
+      const glm::dvec3 target = options.ldr_sun_to_sky_ratio * sky;
+      glm::dvec3 current(0);
+      for (const auto& g : c.peak.sgs) current += glm::dvec3(g.amplitude) * Integral(Sg{g.axis, g.lambda, 1});
+      for (auto& g : c.peak.sgs)
+        for (int ch = 0; ch < 3; ++ch)
+          if (current[ch] > 0) g.amplitude[ch] = static_cast<float>(g.amplitude[ch] * target[ch] / current[ch]);
+      c.peak.energy = target;
+      c.peak.estimated_from_clipped_ldr = true;
+    }
+    out.peaks.push_back(std::move(c.peak));
+  }
+  out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace odvr::lighting

@@ -1,0 +1,417 @@
+#include "engine/lighting/residual_transform.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <glm/geometric.hpp>
+
+#include "engine/core/error.h"
+#include "engine/image/image_io.h"
+#include "engine/sphere/equirect.h"
+#include "engine/sphere/healpix.h"
+#include "engine/sphere/resample.h"
+
+namespace odvr::lighting {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+// μ_c = Σ r G dA / Σ G dA over R(c), optionally divided by S̄_c; one SRBF per index.
+void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normalization normalization,
+             std::vector<glm::vec3>* mu, ThreadPool* pool) {
+  const std::vector<float>& weights =
+      normalization == Normalization::kPartition ? t.srbf_partition_weight : t.srbf_weight;
+  const bool normalize = normalization == Normalization::kLocalSum;
+  const int n = static_cast<int>(t.inv_weight_sum.size());
+  mu->assign(static_cast<std::size_t>(n), glm::vec3(0));
+  const float* r = residue.rgb.data();
+  pool->ParallelFor(
+      n,
+      [&](long begin, long end) {
+        for (long c = begin; c < end; ++c) {
+          double acc[3] = {0, 0, 0};
+          for (int e = t.srbf_begin[static_cast<std::size_t>(c)]; e < t.srbf_begin[static_cast<std::size_t>(c) + 1];
+               ++e) {
+            const float w = weights[static_cast<std::size_t>(e)];
+            const float* p = r + 3 * static_cast<std::size_t>(t.srbf_pixel[static_cast<std::size_t>(e)]);
+            acc[0] += w * p[0];
+            acc[1] += w * p[1];
+            acc[2] += w * p[2];
+          }
+          double scale = t.inv_weight_sum[static_cast<std::size_t>(c)];
+          if (normalize) scale /= t.local_sum[static_cast<std::size_t>(c)];
+          (*mu)[static_cast<std::size_t>(c)] =
+              glm::vec3(static_cast<float>(acc[0] * scale), static_cast<float>(acc[1] * scale),
+                        static_cast<float>(acc[2] * scale));
+        }
+      },
+      4);
+}
+
+// out(p) = sign · Σ_c μ_c G_c(p) added to `out` (sign −1 subtracts: the residue update).
+void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float sign, sphere::EquirectImage* out,
+                 ThreadPool* pool) {
+  float* o = out->rgb.data();
+  pool->ParallelFor(static_cast<long>(out->pixel_count()), [&](long begin, long end) {
+    for (long p = begin; p < end; ++p) {
+      float acc[3] = {0, 0, 0};
+      for (int e = t.pixel_begin[static_cast<std::size_t>(p)]; e < t.pixel_begin[static_cast<std::size_t>(p) + 1];
+           ++e) {
+        const glm::vec3& m = mu[static_cast<std::size_t>(t.pixel_srbf[static_cast<std::size_t>(e)])];
+        const float g = t.pixel_g[static_cast<std::size_t>(e)];
+        acc[0] += m.x * g;
+        acc[1] += m.y * g;
+        acc[2] += m.z * g;
+      }
+      float* q = o + 3 * p;
+      q[0] += sign * acc[0];
+      q[1] += sign * acc[1];
+      q[2] += sign * acc[2];
+    }
+  });
+}
+
+sphere::EquirectImage Subtract(const sphere::EquirectImage& a, const sphere::EquirectImage& b) {
+  sphere::EquirectImage out = a;
+  for (std::size_t i = 0; i < out.rgb.size(); ++i) out.rgb[i] -= b.rgb[i];
+  return out;
+}
+
+}  // namespace
+
+void ResidualTransformOptions::Check() const {
+  if (levels < 1 || levels > 6)
+    throw Error("levels", "must be 1..6 (HEALPix levels 0..5), got " + std::to_string(levels));
+  if (!(stop_threshold >= 0)) throw Error("threshold", "must be >= 0");
+  if (!(keep_threshold >= 0)) throw Error("keep threshold", "must be >= 0");
+  if (sweeps < 1 || sweeps > 16) throw Error("sweeps", "must be 1..16");
+  if (base_width < 8 || base_width > 4096) throw Error("base width", "must be 8..4096");
+  if (!(region_cutoff > 0 && region_cutoff < 0.5)) throw Error("region cutoff", "must be in (0, 0.5)");
+}
+
+std::size_t LevelTables::bytes() const {
+  return sizeof(int) * (srbf_begin.size() + srbf_pixel.size() + pixel_begin.size() + pixel_srbf.size()) +
+         sizeof(float) * (srbf_weight.size() + srbf_partition_weight.size() + inv_weight_sum.size() + local_sum.size() +
+                          pixel_g.size() + pixel_solid_angle.size());
+}
+
+LevelTables BuildLevelTables(int level, int width, int height, double region_cutoff, ThreadPool* pool) {
+  const auto& hp = sphere::Healpix(level);
+  LevelTables t;
+  t.level = level;
+  t.width = width;
+  t.height = height;
+  t.lambda = hp.Lambda();
+  t.pixel_solid_angle.resize(static_cast<std::size_t>(height));
+  for (int row = 0; row < height; ++row)
+    t.pixel_solid_angle[static_cast<std::size_t>(row)] =
+        static_cast<float>(sphere::EquirectPixelSolidAngle(row, width, height));
+
+  // Per SRBF, the pixels of its cap: rows within the cap's latitude range, and in each row the
+  // columns within the cap's longitude half-width (all of them near a pole).
+  const int n = hp.size();
+  const double cos_max = 1.0 + std::log(region_cutoff) / t.lambda;
+  const double theta = cos_max <= -1 ? sphere::kPi : std::acos(cos_max);
+  std::vector<std::vector<std::pair<int, float>>> caps(static_cast<std::size_t>(n));
+  pool->ParallelFor(
+      n,
+      [&](long begin, long end) {
+        for (long c = begin; c < end; ++c) {
+          const glm::dvec3 axis = hp.centre(static_cast<int>(c));
+          const double lat_c = std::asin(std::clamp(axis.y, -1.0, 1.0));
+          const double col_c = sphere::EquirectPixel(axis, width, height).x;
+          const int row0 =
+              std::max(0, static_cast<int>(std::floor((sphere::kPi / 2 - lat_c - theta) / sphere::kPi * height)));
+          const int row1 = std::min(
+              height - 1, static_cast<int>(std::ceil((sphere::kPi / 2 - lat_c + theta) / sphere::kPi * height)));
+          auto& cap = caps[static_cast<std::size_t>(c)];
+          for (int row = row0; row <= row1; ++row) {
+            const double lat = sphere::kPi / 2 - sphere::kPi * (row + 0.5) / height;
+            const double denom = std::cos(lat) * std::cos(lat_c);
+            double half = sphere::kPi;
+            if (denom > 1e-12) {
+              const double x = (std::cos(theta) - std::sin(lat) * std::sin(lat_c)) / denom;
+              if (x >= 1) continue;
+              if (x > -1) half = std::acos(x);
+            }
+            int count =
+                half >= sphere::kPi ? width : 2 * static_cast<int>(std::ceil(half / (2 * sphere::kPi) * width)) + 3;
+            count = std::min(count, width);
+            const int start = count == width ? 0 : static_cast<int>(std::floor(col_c)) - count / 2;
+            for (int k = 0; k < count; ++k) {
+              const int col = ((start + k) % width + width) % width;
+              const double g =
+                  std::exp(t.lambda * (glm::dot(sphere::EquirectPixelDirection(col, row, width, height), axis) - 1.0));
+              if (g >= region_cutoff) cap.emplace_back(row * width + col, static_cast<float>(g));
+            }
+          }
+        }
+      },
+      1);
+
+  // By-SRBF lists with G·dA weights.
+  t.srbf_begin.assign(static_cast<std::size_t>(n) + 1, 0);
+  for (int c = 0; c < n; ++c)
+    t.srbf_begin[static_cast<std::size_t>(c) + 1] =
+        t.srbf_begin[static_cast<std::size_t>(c)] + static_cast<int>(caps[static_cast<std::size_t>(c)].size());
+  const std::size_t entries = static_cast<std::size_t>(t.srbf_begin.back());
+  t.srbf_pixel.resize(entries);
+  t.srbf_weight.resize(entries);
+  t.inv_weight_sum.assign(static_cast<std::size_t>(n), 0);
+  std::vector<int> per_pixel(static_cast<std::size_t>(width) * height + 1, 0);
+  for (int c = 0; c < n; ++c) {
+    double sum = 0;
+    std::size_t e = static_cast<std::size_t>(t.srbf_begin[static_cast<std::size_t>(c)]);
+    for (const auto& [pixel, g] : caps[static_cast<std::size_t>(c)]) {
+      const float w = g * t.pixel_solid_angle[static_cast<std::size_t>(pixel / width)];
+      t.srbf_pixel[e] = pixel;
+      t.srbf_weight[e] = w;
+      sum += w;
+      ++e;
+      ++per_pixel[static_cast<std::size_t>(pixel) + 1];
+    }
+    // A cap with no pixel (a grid far too coarse for the level) contributes nothing.
+    t.inv_weight_sum[static_cast<std::size_t>(c)] = sum > 0 ? static_cast<float>(1.0 / sum) : 0.f;
+  }
+  // Transpose into by-pixel lists.
+  t.pixel_begin.assign(per_pixel.size(), 0);
+  for (std::size_t p = 1; p < per_pixel.size(); ++p) t.pixel_begin[p] = t.pixel_begin[p - 1] + per_pixel[p];
+  t.pixel_srbf.resize(entries);
+  t.pixel_g.resize(entries);
+  std::vector<int> fill(t.pixel_begin.begin(), t.pixel_begin.end() - 1);
+  for (int c = 0; c < n; ++c)
+    for (const auto& [pixel, g] : caps[static_cast<std::size_t>(c)]) {
+      const int e = fill[static_cast<std::size_t>(pixel)]++;
+      t.pixel_srbf[static_cast<std::size_t>(e)] = c;
+      t.pixel_g[static_cast<std::size_t>(e)] = g;
+    }
+  // S(ω) = Σ_c G_c(ω) per pixel, then S̄_c, its G·dA-weighted mean over R(c).
+  std::vector<float> sum_g(static_cast<std::size_t>(width) * height, 0);
+  for (std::size_t p = 0; p < sum_g.size(); ++p)
+    for (int e = t.pixel_begin[p]; e < t.pixel_begin[p + 1]; ++e) sum_g[p] += t.pixel_g[static_cast<std::size_t>(e)];
+  t.srbf_partition_weight.resize(entries);
+  for (std::size_t e = 0; e < entries; ++e) {
+    const float sum = sum_g[static_cast<std::size_t>(t.srbf_pixel[e])];
+    t.srbf_partition_weight[e] = sum > 0 ? t.srbf_weight[e] / sum : 0.f;
+  }
+  t.local_sum.assign(static_cast<std::size_t>(n), 1.f);
+  for (int c = 0; c < n; ++c) {
+    double num = 0, den = 0;
+    for (int e = t.srbf_begin[static_cast<std::size_t>(c)]; e < t.srbf_begin[static_cast<std::size_t>(c) + 1]; ++e) {
+      num += t.srbf_weight[static_cast<std::size_t>(e)] *
+             sum_g[static_cast<std::size_t>(t.srbf_pixel[static_cast<std::size_t>(e)])];
+      den += t.srbf_weight[static_cast<std::size_t>(e)];
+    }
+    if (den > 0) t.local_sum[static_cast<std::size_t>(c)] = static_cast<float>(num / den);
+  }
+  return t;
+}
+
+double RmsRadiance(const sphere::EquirectImage& image) {
+  double sum = 0;
+  for (int row = 0; row < image.height; ++row) {
+    double row_sum = 0;
+    const float* p = image.at(0, row);
+    for (int i = 0; i < image.width * 3; ++i) row_sum += static_cast<double>(p[i]) * p[i];
+    sum += row_sum * sphere::EquirectPixelSolidAngle(row, image.width, image.height);
+  }
+  return std::sqrt(sum / 3.0 / (4 * sphere::kPi));
+}
+
+double MeanAbsRadiance(const sphere::EquirectImage& image) {
+  double sum = 0;
+  for (int row = 0; row < image.height; ++row) {
+    double row_sum = 0;
+    const float* p = image.at(0, row);
+    for (int i = 0; i < image.width * 3; ++i) row_sum += std::abs(p[i]);
+    sum += row_sum * sphere::EquirectPixelSolidAngle(row, image.width, image.height);
+  }
+  return sum / 3.0 / (4 * sphere::kPi);
+}
+
+ResidualTransform::ResidualTransform(ResidualTransformOptions options)
+    : options_(options), pool_(std::make_unique<ThreadPool>(options.threads)) {
+  options_.Check();
+}
+
+std::pair<int, int> ResidualTransform::GridOf(int level, int input_width, int input_height) const {
+  const int w = std::min(input_width, options_.base_width << level);
+  const int h = std::max(1, static_cast<int>(std::lround(static_cast<double>(input_height) * w / input_width)));
+  return {w, h};
+}
+
+const LevelTables& ResidualTransform::Tables(int level, int width, int height) {
+  std::lock_guard lock(mutex_);
+  auto& slot = tables_[{level, width, height}];
+  if (!slot) {
+    const auto start = Clock::now();
+    slot = std::make_unique<LevelTables>(BuildLevelTables(level, width, height, options_.region_cutoff, pool_.get()));
+    spdlog::debug("lighting: overlap lists of level {} on {}x{} built in {:.1f} ms ({:.1f} MiB)", level, width, height,
+                  MsSince(start), slot->bytes() / 1048576.0);
+  }
+  return *slot;
+}
+
+SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformReport* report_out) {
+  const auto start = Clock::now();
+  if (input.width < 8 || input.height < 4)
+    throw Error("lighting input", "is " + std::to_string(input.width) + "x" + std::to_string(input.height) +
+                                      ": an equirect frame needs at least 8x4 pixels");
+  const double aspect = static_cast<double>(input.width) / input.height;
+  if (aspect < 1.9 || aspect > 2.1)
+    throw Error("lighting input", "is " + std::to_string(input.width) + "x" + std::to_string(input.height) +
+                                      ": an equirect frame is twice as wide as high");
+  TransformReport report;
+  SgLighting model;
+
+  // Working grids, finest first, each resampled from the next finer one (area-preserving).
+  const int levels = options_.levels;
+  std::vector<sphere::EquirectImage> grids(static_cast<std::size_t>(levels));
+  {
+    sphere::EquirectImage clean;
+    const sphere::EquirectImage* source = &input;
+    const bool dirty =
+        std::any_of(input.rgb.begin(), input.rgb.end(), [](float v) { return !(v >= 0) || std::isinf(v); });
+    if (dirty) {
+      clean = input;
+      const auto [bad, negative] = image::SanitizePixels(&clean);
+      spdlog::warn("lighting input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
+      source = &clean;
+    }
+    for (int s = levels - 1; s >= 0; --s) {
+      const auto [w, h] = GridOf(s, input.width, input.height);
+      const sphere::EquirectImage& finer = s == levels - 1 ? *source : grids[static_cast<std::size_t>(s) + 1];
+      grids[static_cast<std::size_t>(s)] = sphere::ResampleArea(finer, w, h);
+    }
+  }
+  report.prepare_ms = MsSince(start);
+
+  const sphere::EquirectImage& finest = grids.back();
+  report.mean_radiance = MeanAbsRadiance(finest);
+  if (!(report.mean_radiance > 0)) {
+    report.stop_reason = "the frame is black";
+    report.total_ms = MsSince(start);
+    if (report_out) *report_out = report;
+    return model;
+  }
+
+  // The constant term: the solid-angle-weighted mean (an SG with λ = 0).
+  if (options_.constant_term) {
+    glm::dvec3 sum(0);
+    for (int row = 0; row < finest.height; ++row) {
+      const double da = sphere::EquirectPixelSolidAngle(row, finest.width, finest.height);
+      for (int col = 0; col < finest.width; ++col) {
+        const float* p = finest.at(col, row);
+        sum += da * glm::dvec3(p[0], p[1], p[2]);
+      }
+    }
+    model.constant = glm::vec3(sum / (4 * sphere::kPi));
+  }
+
+  // R: reconstruction of everything fitted so far, on the current level's grid.
+  const auto [w0, h0] = GridOf(0, input.width, input.height);
+  sphere::EquirectImage recon(w0, h0);
+  for (std::size_t i = 0; i < recon.rgb.size(); i += 3) {
+    recon.rgb[i] = model.constant.x;
+    recon.rgb[i + 1] = model.constant.y;
+    recon.rgb[i + 2] = model.constant.z;
+  }
+  std::vector<glm::vec3> previous_mu;
+  int previous_level = -1;
+  const float keep = static_cast<float>(options_.keep_threshold * report.mean_radiance);
+
+  for (int s = 0; s < levels; ++s) {
+    const auto level_start = Clock::now();
+    const auto [w, h] = GridOf(s, input.width, input.height);
+    if (s > 0) {
+      // R_{<s} on this grid: the coarser reconstruction magnified (it is smooth at this scale),
+      // plus the previous level evaluated exactly here.
+      recon = sphere::UpsampleBilinear(recon, w, h);
+      Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, &recon, pool_.get());
+    }
+    const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];
+    sphere::EquirectImage residue = Subtract(target, recon);
+    const double before = MeanAbsRadiance(residue) / report.mean_radiance;
+    const double rms_before = RmsRadiance(residue);
+    if (before < options_.stop_threshold && s > 0) {
+      report.stop_reason = "residue below threshold before level " + std::to_string(s);
+      break;
+    }
+
+    const LevelTables& t = Tables(s, w, h);
+    std::vector<glm::vec3> mu, delta;
+    Project(t, residue, options_.normalization, &mu, pool_.get());
+    sphere::EquirectImage remaining = residue;
+    Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+    for (int sweep = 1; sweep < options_.sweeps; ++sweep) {
+      Project(t, remaining, options_.normalization, &delta, pool_.get());
+      for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += delta[c];
+      remaining = residue;
+      Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+    }
+    // Model only what the frame needs: drop negligible SRBFs.
+    int kept = 0;
+    bool dropped_any = false;
+    for (auto& m : mu) {
+      if (std::max({std::abs(m.x), std::abs(m.y), std::abs(m.z)}) < keep) {
+        if (m != glm::vec3(0)) dropped_any = true;
+        m = glm::vec3(0);
+      } else {
+        ++kept;
+      }
+    }
+    if (dropped_any) {
+      remaining = residue;
+      Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+    }
+    const double after = MeanAbsRadiance(remaining) / report.mean_radiance;
+    // Eq. 4.17 is a local least-squares estimate, so a level must lower the residue's energy
+    // (RMS); the mean |residue| may rise when a sun's energy is spread (it is the stop rule's
+    // measure, the seed's "average value of the residue").
+    const double rms_after = RmsRadiance(remaining);
+    LevelReport lr;
+    lr.level = s;
+    lr.srbfs_total = t.level == s ? static_cast<int>(mu.size()) : 0;
+    lr.srbfs_kept = kept;
+    lr.lambda = t.lambda;
+    lr.width = w;
+    lr.height = h;
+    lr.residue_before = before;
+    if (rms_after >= rms_before || kept == 0) {
+      // The level would not help: leave it out and stop, finer levels would only fit noise.
+      lr.srbfs_kept = 0;
+      lr.residue_after = before;
+      lr.ms = MsSince(level_start);
+      report.levels.push_back(lr);
+      report.stop_reason = "level " + std::to_string(s) + " does not reduce the residue";
+      break;
+    }
+    lr.residue_after = after;
+    SgLevel level;
+    level.level = s;
+    level.lambda = t.lambda;
+    for (std::size_t c = 0; c < mu.size(); ++c) {
+      if (mu[c] == glm::vec3(0)) continue;
+      level.indices.push_back(static_cast<int>(c));
+      level.amplitudes.push_back(mu[c]);
+    }
+    model.levels.push_back(std::move(level));
+    previous_mu = std::move(mu);
+    previous_level = s;
+    lr.ms = MsSince(level_start);
+    report.levels.push_back(lr);
+    if (after < options_.stop_threshold) {
+      report.stop_reason = "residue below threshold after level " + std::to_string(s);
+      break;
+    }
+  }
+  if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
+  report.total_ms = MsSince(start);
+  if (report_out) *report_out = report;
+  return model;
+}
+
+}  // namespace odvr::lighting

@@ -1,0 +1,120 @@
+#pragma once
+// The multiscale residual transform (seed §4.4.1.2, eq. 4.17–4.18, Algorithms 1–3;
+// DESIGN.md §4): an equirect frame becomes a constant plus SGs on the HEALPix levels, coarse to
+// fine, each level fitting what the coarser ones left.
+//
+// Per level s with lobe λ_s, on a working grid that resolves its lobes (64·2^s pixels wide,
+// capped at the input's width):
+//   residue   r_s = I_s − R_{<s}            (I_s: the input area-resampled to the grid,
+//                                            R_{<s}: the reconstruction of the coarser levels)
+//   amplitude μ_c = Σ_{ω∈R(c)} r_s(ω) G_c(ω) dA(ω) / Σ_{ω∈R(c)} G_c(ω) dA(ω)      (eq. 4.17)
+//   residue   r_{s+1} = r_s − Σ_c μ_c G_c                                          (eq. 4.18)
+// R(c) is the cap where G_c > 1e-3, and both sums run over precomputed overlap lists (per SRBF
+// its pixels, per pixel its SRBFs), built once per grid, never all SRBFs for every pixel.
+//
+// The known trap: one level's Gaussians do not sum to one (0.6–1.3 with the seed's λ), so the
+// plain weighted mean overshoots a bright region's energy and the finer levels then chase the
+// overshoot (the diffuse error rises from level 3 to 4). Two fixes are options, measured by
+// `odvr bench light`: dividing μ_c by the local sum of the level's Gaussians S̄_c (the
+// G·dA-weighted mean over R(c) of S(ω) = Σ_c' G_c'(ω)), so a constant residue is reproduced; and
+// extra sweeps that refit the remaining residue (μ += projection(r − L_s)/S̄), a Richardson
+// iteration towards the level's least-squares fit.
+//
+// It models only what the frame needs: the constant term takes the mean first, SRBFs with a
+// negligible |μ| are dropped, a level that does not reduce the mean absolute residue is
+// rejected, and the transform stops once that residue falls below a fraction of the mean
+// radiance.
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "engine/core/parallel.h"
+#include "engine/lighting/sg_lighting.h"
+#include "engine/sphere/equirect_image.h"
+
+namespace odvr::lighting {
+
+// kNone: eq. 4.17 as written. kLocalSum: μ_c / S̄_c. kPartition: each pixel's residue is shared
+// among the SRBFs covering it in proportion to G_c(ω)/S(ω) (a partition of unity), so a level
+// conserves the residue's energy exactly: Σ_c μ_c Σ_ω G_c dA = Σ_ω r dA.
+enum class Normalization { kNone, kLocalSum, kPartition };
+
+struct ResidualTransformOptions {
+  int levels = 5;                // HEALPix levels 0..levels−1 (5: 4092 SGs, the seed's deepest)
+  double stop_threshold = 0.01;  // stop when mean |residue| < this × mean radiance
+  double keep_threshold = 1e-3;  // drop SRBFs whose max |μ| < this × mean radiance
+  bool constant_term = true;
+  Normalization normalization = Normalization::kPartition;
+  int sweeps = 2;       // eq. 4.17 passes per level; 1 is the seed's single pass
+  int base_width = 64;  // working width of level 0; doubles per level up to the input width
+  int threads = 0;      // CPU threads (0: all cores)
+  double region_cutoff = 1e-3;
+  void Check() const;  // throws odvr::Error
+};
+
+struct LevelReport {
+  int level = 0;
+  int srbfs_total = 0;
+  int srbfs_kept = 0;
+  double lambda = 0;
+  int width = 0, height = 0;  // working grid
+  double ms = 0;
+  double residue_before = 0;  // mean |residue| / mean radiance, entering the level
+  double residue_after = 0;   // and leaving it
+};
+
+struct TransformReport {
+  std::vector<LevelReport> levels;
+  double mean_radiance = 0;
+  double prepare_ms = 0;  // resampling the input to the working grids
+  double total_ms = 0;
+  std::string stop_reason;
+  std::string device = "cpu";
+};
+
+// One HEALPix level's overlap lists on one working grid (built once, reused every frame).
+struct LevelTables {
+  int level = 0, width = 0, height = 0;
+  double lambda = 0;
+  // By SRBF: pixels of R(c) with weights G·dA, and 1/Σ G·dA, and S̄_c.
+  std::vector<int> srbf_begin, srbf_pixel;
+  std::vector<float> srbf_weight, inv_weight_sum, local_sum;
+  std::vector<float> srbf_partition_weight;  // G·dA / S(ω)
+  // By pixel: the SRBFs whose cap covers it, with G.
+  std::vector<int> pixel_begin, pixel_srbf;
+  std::vector<float> pixel_g;
+  std::vector<float> pixel_solid_angle;  // per row
+  std::size_t bytes() const;
+};
+
+class ResidualTransform {
+ public:
+  explicit ResidualTransform(ResidualTransformOptions options = {});
+
+  // `input` is linear RGB; NaN/Inf/negative pixels are treated as 0 (and counted in the log).
+  // Throws odvr::Error for an input too small for the transform (< 8×4) or not about 2:1.
+  SgLighting Run(const sphere::EquirectImage& input, TransformReport* report = nullptr);
+
+  const ResidualTransformOptions& options() const { return options_; }
+  // Working grid of level s for an input of the given size.
+  std::pair<int, int> GridOf(int level, int input_width, int input_height) const;
+  const LevelTables& Tables(int level, int width, int height);
+
+ private:
+  ResidualTransformOptions options_;
+  std::unique_ptr<ThreadPool> pool_;
+  std::mutex mutex_;
+  std::map<std::tuple<int, int, int>, std::unique_ptr<LevelTables>> tables_;
+};
+
+// Builds the overlap lists of HEALPix `level` on a width×height grid.
+LevelTables BuildLevelTables(int level, int width, int height, double region_cutoff, ThreadPool* pool);
+
+// Solid-angle-weighted mean of (|r|+|g|+|b|)/3 over the sphere, and the RMS of the channels.
+double MeanAbsRadiance(const sphere::EquirectImage& image);
+double RmsRadiance(const sphere::EquirectImage& image);
+
+}  // namespace odvr::lighting
