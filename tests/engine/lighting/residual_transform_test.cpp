@@ -1,0 +1,164 @@
+#include "engine/lighting/residual_transform.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "engine/core/error.h"
+#include "engine/lighting/lighting_errors.h"
+#include "engine/sphere/healpix.h"
+#include "tests/engine/lighting/lighting_test_maps.h"
+
+namespace odvr::lighting {
+namespace {
+
+using odvr::testing::AddDisc;
+using odvr::testing::AngleDeg;
+using odvr::testing::SkyMap;
+
+TEST(ResidualTransform, ConstantFrameIsOneSgToOneThousandth) {
+  const sphere::EquirectImage frame(128, 64, 0.7f);
+  ResidualTransform t;
+  TransformReport report;
+  const SgLighting m = t.Run(frame, &report);
+  EXPECT_LE(m.sg_count(), 12);
+  const auto recon = m.Reconstruct(128, 64);
+  for (float v : recon.rgb) EXPECT_NEAR(v, 0.7f, 0.7e-3f);
+  EXPECT_LE(report.levels.size(), 1u);  // a uniform sky ends after (at most) one level
+}
+
+TEST(ResidualTransform, BlackFrameGivesAnEmptyModel) {
+  ResidualTransform t;
+  TransformReport report;
+  const SgLighting m = t.Run(sphere::EquirectImage(64, 32), &report);
+  EXPECT_EQ(m.sg_count(), 0);
+  EXPECT_EQ(report.stop_reason, "the frame is black");
+}
+
+TEST(ResidualTransform, SmoothSkyStopsEarlyAndReconstructsWell) {
+  // An overcast sky: brighter towards the zenith, no hard horizon (a sharp edge needs fine levels).
+  sphere::EquirectImage sky(256, 128);
+  for (int row = 0; row < 128; ++row)
+    for (int col = 0; col < 256; ++col) {
+      const auto d = sphere::EquirectPixelDirection(col, row, 256, 128);
+      float* p = sky.at(col, row);
+      p[0] = static_cast<float>(0.5 + 0.3 * d.y + 0.05 * d.x);
+      p[1] = static_cast<float>(0.55 + 0.35 * d.y);
+      p[2] = static_cast<float>(0.6 + 0.4 * d.y - 0.05 * d.z);
+    }
+  ResidualTransformOptions o;
+  o.stop_threshold = 0.01;
+  ResidualTransform t(o);
+  TransformReport report;
+  const SgLighting m = t.Run(sky, &report);
+  EXPECT_LE(report.levels.size(), 3u) << report.stop_reason;  // models only what the sky needs
+  EXPECT_LT(report.levels.back().residue_after, 0.01);
+  LightingErrorEvaluator ev(sky);
+  EXPECT_LT(ev.Evaluate(m).diffuse, 0.01);
+}
+
+TEST(ResidualTransform, NoErrorGrowsWhenALevelIsAddedEvenWithAnUntreatedSun) {
+  // The trap of the issue: without peaks, eq. 4.17 as written overshoots the sun's energy. The
+  // default (partition-of-unity) projection must make every convolved error fall level by level.
+  auto frame = SkyMap(256, 128);
+  AddDisc(&frame, {0.3, 0.8, -0.4}, 0.02, 2e3f);
+  LightingErrorEvaluator ev(frame);
+  LightingErrors previous{1e9, 1e9, 1e9, 1e9};
+  for (int levels = 1; levels <= 5; ++levels) {
+    ResidualTransformOptions o;
+    o.levels = levels;
+    o.stop_threshold = 0;
+    o.keep_threshold = 0;
+    ResidualTransform t(o);
+    const LightingErrors e = ev.Evaluate(t.Run(frame));
+    EXPECT_LE(e.diffuse, previous.diffuse * 1.02 + 1e-4) << levels;
+    EXPECT_LE(e.glossy20, previous.glossy20 * 1.02 + 1e-4) << levels;
+    EXPECT_LE(e.glossy200, previous.glossy200 * 1.02 + 1e-4) << levels;
+    previous = e;
+  }
+  EXPECT_LT(previous.diffuse, 0.02);
+}
+
+TEST(ResidualTransform, PartitionProjectionConservesEnergyAtEveryLevel) {
+  auto frame = SkyMap(128, 64);
+  AddDisc(&frame, {-0.5, 0.5, 0.2}, 0.05, 500.f);
+  for (int levels = 1; levels <= 4; ++levels) {
+    ResidualTransformOptions o;
+    o.levels = levels;
+    o.stop_threshold = 0;
+    o.keep_threshold = 0;
+    ResidualTransform t(o);
+    const SgLighting m = t.Run(frame);
+    double model_energy = 4 * sphere::kPi * m.constant.x, frame_energy = 0;
+    for (const auto& g : m.ToSgs())
+      if (g.lambda > 0) model_energy += g.amplitude.x * Integral(Sg{g.axis, g.lambda, 1});
+    for (int row = 0; row < 64; ++row)
+      for (int col = 0; col < 128; ++col)
+        frame_energy += frame.at(col, row)[0] * sphere::EquirectPixelSolidAngle(row, 128, 64);
+    // The Gaussians' tails beyond the 1e-3 cut-off and the grid's quadrature leave a few 0.1 %.
+    EXPECT_NEAR(model_energy / frame_energy, 1.0, 0.01) << levels;
+  }
+}
+
+TEST(ResidualTransform, BrightSpotsAtTheSeamAndThePolesLandWhereTheyAre) {
+  for (const glm::dvec3 spot : {glm::dvec3(-1, 0.05, 0.0), glm::dvec3(0, 1, 0), glm::dvec3(0, -1, 0)}) {
+    auto frame = SkyMap(256, 128);
+    AddDisc(&frame, spot, 0.08, 30.f);
+    ResidualTransformOptions o;
+    o.stop_threshold = 0;
+    ResidualTransform t(o);
+    const SgLighting m = t.Run(frame);
+    // The brightest direction of the model, searched on level-4 centres.
+    double best = -1;
+    glm::dvec3 best_dir(0);
+    for (const auto& d : sphere::Healpix(4).centres()) {
+      const glm::vec3 v = m.Evaluate(d);
+      if (v.x > best) {
+        best = v.x;
+        best_dir = d;
+      }
+    }
+    EXPECT_LT(AngleDeg(best_dir, glm::normalize(spot)), 3.0) << spot.x << "," << spot.y;
+    EXPECT_GT(best, 15.0);
+    for (float v : m.Reconstruct(64, 32).rgb) EXPECT_TRUE(std::isfinite(v));
+  }
+}
+
+TEST(ResidualTransform, NanInfAndNegativePixelsNeverReachTheModel) {
+  auto frame = SkyMap(128, 64);
+  frame.at(3, 3)[0] = std::nanf("");
+  frame.at(100, 40)[1] = INFINITY;
+  frame.at(50, 20)[2] = -3894.f;
+  ResidualTransform t;
+  const SgLighting m = t.Run(frame);
+  for (const auto& g : m.ToSgs()) {
+    EXPECT_TRUE(std::isfinite(g.amplitude.x) && std::isfinite(g.amplitude.y) && std::isfinite(g.amplitude.z));
+  }
+  for (float v : m.Reconstruct(64, 32).rgb) EXPECT_TRUE(std::isfinite(v));
+}
+
+TEST(ResidualTransform, TinyAndNonEquirectInputsAreClearErrors) {
+  ResidualTransform t;
+  EXPECT_THROW(t.Run(sphere::EquirectImage(1, 1, 1.f)), Error);
+  EXPECT_THROW(t.Run(sphere::EquirectImage(100, 100, 1.f)), Error);
+  ResidualTransformOptions bad;
+  bad.levels = 9;
+  EXPECT_THROW(ResidualTransform{bad}, Error);
+}
+
+TEST(ResidualTransform, OverlapListsCoverEveryPixelAndEverySrbf) {
+  ThreadPool pool(1);
+  const LevelTables t = BuildLevelTables(2, 128, 64, 1e-3, &pool);
+  EXPECT_EQ(t.srbf_begin.size(), 192u + 1);
+  for (std::size_t c = 0; c < 192; ++c) EXPECT_GT(t.srbf_begin[c + 1], t.srbf_begin[c]);
+  for (std::size_t p = 0; p + 1 < t.pixel_begin.size(); ++p) EXPECT_GT(t.pixel_begin[p + 1], t.pixel_begin[p]);
+  // Each pixel's partition weights over its SRBFs sum to its solid angle.
+  std::vector<double> share(128 * 64, 0);
+  for (std::size_t e = 0; e < t.srbf_pixel.size(); ++e)
+    share[static_cast<std::size_t>(t.srbf_pixel[e])] += t.srbf_partition_weight[e];
+  for (int row = 0; row < 64; ++row)
+    EXPECT_NEAR(share[static_cast<std::size_t>(row) * 128], sphere::EquirectPixelSolidAngle(row, 128, 64), 1e-9);
+}
+
+}  // namespace
+}  // namespace odvr::lighting
