@@ -237,10 +237,24 @@ ResidualTransform::ResidualTransform(ResidualTransformOptions options)
   options_.Check();
 }
 
-std::pair<int, int> ResidualTransform::GridOf(int level, int input_width, int input_height) const {
-  const int w = std::min(input_width, options_.base_width << level);
+void CheckTransformInput(int width, int height) {
+  if (width < 8 || height < 4)
+    throw Error("lighting input", "is " + std::to_string(width) + "x" + std::to_string(height) +
+                                      ": an equirect frame needs at least 8x4 pixels");
+  const double aspect = static_cast<double>(width) / height;
+  if (aspect < 1.9 || aspect > 2.1)
+    throw Error("lighting input", "is " + std::to_string(width) + "x" + std::to_string(height) +
+                                      ": an equirect frame is twice as wide as high");
+}
+
+std::pair<int, int> WorkingGrid(const ResidualTransformOptions& options, int level, int input_width, int input_height) {
+  const int w = std::min(input_width, options.base_width << level);
   const int h = std::max(1, static_cast<int>(std::lround(static_cast<double>(input_height) * w / input_width)));
   return {w, h};
+}
+
+std::pair<int, int> ResidualTransform::GridOf(int level, int input_width, int input_height) const {
+  return WorkingGrid(options_, level, input_width, input_height);
 }
 
 const LevelTables& ResidualTransform::Tables(int level, int width, int height) {
@@ -257,13 +271,7 @@ const LevelTables& ResidualTransform::Tables(int level, int width, int height) {
 
 SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformReport* report_out) {
   const auto start = Clock::now();
-  if (input.width < 8 || input.height < 4)
-    throw Error("lighting input", "is " + std::to_string(input.width) + "x" + std::to_string(input.height) +
-                                      ": an equirect frame needs at least 8x4 pixels");
-  const double aspect = static_cast<double>(input.width) / input.height;
-  if (aspect < 1.9 || aspect > 2.1)
-    throw Error("lighting input", "is " + std::to_string(input.width) + "x" + std::to_string(input.height) +
-                                      ": an equirect frame is twice as wide as high");
+  CheckTransformInput(input.width, input.height);
   TransformReport report;
   SgLighting model;
 
@@ -368,9 +376,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
       Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
     }
     const double after = MeanAbsRadiance(remaining) / report.mean_radiance;
-    // Eq. 4.17 is a local least-squares estimate, so a level must lower the residue's energy
-    // (RMS); the mean |residue| may rise when a sun's energy is spread (it is the stop rule's
-    // measure, the seed's "average value of the residue").
+    // The rejection rule looks at the RMS: the mean |residue| may rise when a sun's energy is
+    // spread (it is the stop rule's measure, the seed's "average value of the residue").
     const double rms_after = RmsRadiance(remaining);
     LevelReport lr;
     lr.level = s;
@@ -380,7 +387,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     lr.width = w;
     lr.height = h;
     lr.residue_before = before;
-    if (rms_after >= rms_before || kept == 0) {
+    if (!LevelReducesResidue(rms_before, rms_after, kept)) {
       // The level would not help: leave it out and stop, finer levels would only fit noise.
       lr.srbfs_kept = 0;
       lr.residue_after = before;

@@ -110,6 +110,18 @@ class ResidualTransform {
   std::map<std::tuple<int, int, int>, std::unique_ptr<LevelTables>> tables_;
 };
 
+// The pieces of the transform's definition that the CPU and GPU paths share, so that their
+// grids and decisions cannot drift apart.
+// Throws odvr::Error for an input too small for the transform (< 8×4) or not about 2:1.
+void CheckTransformInput(int width, int height);
+// Working grid of level s: base_width·2^s wide, capped at the input's width, the input's aspect.
+std::pair<int, int> WorkingGrid(const ResidualTransformOptions& options, int level, int input_width, int input_height);
+// A level is kept only when it keeps an SRBF and lowers the residue's energy (RMS): eq. 4.17 is
+// a local least-squares estimate, so a level that does not is fitting nothing the frame has.
+inline bool LevelReducesResidue(double rms_before, double rms_after, int kept) {
+  return rms_after < rms_before && kept > 0;
+}
+
 // Builds the overlap lists of HEALPix `level` on a width×height grid.
 LevelTables BuildLevelTables(int level, int width, int height, double region_cutoff, ThreadPool* pool);
 

@@ -1,0 +1,68 @@
+#pragma once
+// The GPU path of the multiscale residual transform (seed §4.4.3, Algorithms 1–3; DESIGN.md §4):
+// the same algorithm and the same decisions as ResidualTransform (residual_transform.h), with
+// the work in GLSL compute shaders. Per level, as in the seed, two passes: the projection (one
+// work group per SRBF over its precomputed pixel list, a shared-memory reduction) and the
+// reconstruction with the residue update (one invocation per pixel over its SRBF list). The
+// frame is uploaded once (or read from a texture the caller already has), area-resampled to the
+// working grids and the coarser reconstruction magnified on the GPU; the CPU reads back only
+// the amplitudes and a few sums per level (mean |residue|, RMS, kept count) that its stop, keep
+// and rejection rules need. The overlap lists come from the CPU's BuildLevelTables, built once
+// per grid size and kept on the GPU as storage buffers.
+#include <chrono>
+#include <map>
+#include <memory>
+#include <tuple>
+#include <vector>
+
+#include "engine/core/parallel.h"
+#include "engine/gl/objects.h"
+#include "engine/lighting/residual_transform.h"
+
+namespace odvr::lighting {
+
+class ResidualTransformGpu {
+ public:
+  // Needs a current OpenGL 4.5 context (compiles its shaders); throws odvr::Error otherwise
+  // and for invalid options. Every call must be made with that context current.
+  explicit ResidualTransformGpu(ResidualTransformOptions options = {});
+  ~ResidualTransformGpu();
+  ResidualTransformGpu(const ResidualTransformGpu&) = delete;
+  ResidualTransformGpu& operator=(const ResidualTransformGpu&) = delete;
+
+  // As ResidualTransform::Run; report->device is "gpu".
+  SgLighting Run(const sphere::EquirectImage& input, TransformReport* report = nullptr);
+  // A frame already on the GPU: a 2D texture of linear RGB, texel row 0 the top row (as
+  // PanoramaRenderer uploads it). Level 0 of it is read; its filter settings do not matter.
+  SgLighting Run(const gl::Texture& frame, TransformReport* report = nullptr);
+
+  const ResidualTransformOptions& options() const { return options_; }
+
+ private:
+  struct Grid;
+  struct Tables;
+  SgLighting RunOnTexture(GLuint frame, int input_width, int input_height, std::chrono::steady_clock::time_point start,
+                          TransformReport* report);
+  void PrepareGrids(int input_width, int input_height);
+  // `projection`: the by-SRBF lists too (only a level's own grid projects).
+  const Tables& TablesFor(int level, int width, int height, bool projection);
+  // Sums of `image` over the sphere into slot `slot` of totals_ (no readback).
+  void Sums(const gl::Buffer& image, const Grid& grid, int slot);
+  void Project(const Tables& tables, const gl::Buffer& residue, const gl::Buffer& mu, bool accumulate);
+  // out = base + sign·Σ μ G (tables == nullptr: nothing added); see lighting_reconstruct.comp.
+  void Reconstruct(const Tables* tables, const gl::Buffer& mu, const gl::Buffer& base, const gl::Buffer& out,
+                   float sign, const Grid& grid, bool write_residue, bool only_if_dropped);
+
+  ResidualTransformOptions options_;
+  std::unique_ptr<ThreadPool> pool_;  // builds the overlap lists
+  gl::Program resample_texture_{gl::NoCreate}, resample_{gl::NoCreate}, upsample_{gl::NoCreate}, stats_{gl::NoCreate},
+      stats_total_{gl::NoCreate}, project_{gl::NoCreate}, reconstruct_{gl::NoCreate}, keep_{gl::NoCreate};
+  std::map<std::tuple<int, int, int>, std::unique_ptr<Tables>> tables_;
+  std::vector<std::unique_ptr<Grid>> grids_;  // per level, for the last input size
+  int grids_input_width_ = 0, grids_input_height_ = 0;
+  // Scratch images (vec4 per pixel) sized for the finest grid, and the per-level state.
+  gl::Buffer recon_[2], residue_, remaining_, row_sums_, totals_, flags_, counters_, mu_[2];
+  gl::Texture upload_{gl::NoCreate};  // the frame of Run(EquirectImage), reused while the size holds
+};
+
+}  // namespace odvr::lighting

@@ -1,0 +1,23 @@
+#version 450
+// The keep rule of the residual transform: an SRBF whose largest |μ| channel is below uKeep
+// (keep threshold × mean radiance) is dropped (μ = 0). Counts the kept SRBFs and flags whether
+// a non-zero μ was dropped, so the residue is recomputed only then.
+layout(local_size_x = 64) in;
+
+layout(std430, binding = 0) buffer Mu { vec4 mu[]; };
+layout(std430, binding = 1) buffer Flags { uint kept; uint dropped; };
+
+uniform int uCount;
+uniform float uKeep;
+
+void main() {
+  int c = int(gl_GlobalInvocationID.x);
+  if (c >= uCount) return;
+  vec3 m = mu[c].rgb;
+  if (max(abs(m.r), max(abs(m.g), abs(m.b))) < uKeep) {
+    if (m != vec3(0.0)) atomicOr(dropped, 1u);
+    mu[c] = vec4(0.0);
+  } else {
+    atomicAdd(kept, 1u);
+  }
+}
