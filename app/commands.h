@@ -20,6 +20,7 @@ const std::vector<CommandSpec>& Commands();
 
 CommandFn AddInfo(CLI::App* sub);
 CommandFn AddPlay(CLI::App* sub);
+CommandFn AddStitch(CLI::App* sub);
 
 // media/demo/street.mp4 beside the sources or the working directory; throws if absent.
 std::string DefaultDemoVideo();

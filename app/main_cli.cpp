@@ -13,6 +13,7 @@ const std::vector<CommandSpec>& Commands() {
   static const std::vector<CommandSpec> commands = {
       {"info", "Print the OpenGL context, its compute limits and library versions", AddInfo},
       {"play", "Play a 360° video with free look (headless: render frames to PNG)", AddPlay},
+      {"stitch", "Stitch rig frames into equirectangular frames (GPU or CPU), with per-frame times", AddStitch},
   };
   return commands;
 }

@@ -1,0 +1,136 @@
+#pragma once
+// Rig frames -> one equirectangular frame (seed §5.3.1, DESIGN.md §6), in linear float RGB
+// following engine/sphere/equirect.h, with the output in the rig frame mapped to odvr's Y-up
+// frame (rig x forward, y left, z up -> (x, z, -y)).
+//
+// Per output pixel: its bearing, each camera's pixel through the rig's camera models (a lookup
+// table built once per rig and output size), bilinear samples of the linearized 8-bit sRGB
+// images, feathered blending (a camera's weight falls to 0 at its image edge), one gain per
+// camera estimated from the overlaps (least squares on overlap means, as OpenCV's
+// GainCompensator does), and directions no camera sees (zenith, nadir) marked invalid and filled
+// by pull-push interpolation from the valid border, so the lighting built from the frame is not
+// darkened by black holes.
+//
+// Stated behaviour for bad input:
+//  * a frame set with a different number of cameras than the rig, or an image whose size is not
+//    the rig's for that camera: odvr::Error naming the camera and both sizes;
+//  * a missing (empty) or black frame (mean linear intensity below black_level, or below 2 % of
+//    the median of the other cameras): the camera is left out of blending and of the gain
+//    estimate (its gain stays 1 and is never solved from a zero mean); the other cameras still
+//    stitch, and the directions only it saw become invalid and are filled.
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <opencv2/core/mat.hpp>
+#include <string>
+#include <vector>
+
+#include "capture/frame.h"
+#include "capture/rig.h"
+#include "engine/core/parallel.h"
+#include "engine/sphere/equirect_image.h"
+
+namespace odvr::capture {
+
+enum class StitchDevice { kCpu, kGpu };
+
+// Cameras per rig the stitcher takes (the GPU path passes per-camera gains as a uniform array
+// and the cameras in use as a 32-bit mask).
+inline constexpr int kMaxStitchCameras = 32;
+
+struct StitchOptions {
+  int width = 2048, height = 1024;  // output equirect size
+  StitchDevice device = StitchDevice::kCpu;
+  // Distance at which the cameras' rays are made to meet (metres). 0 = infinity: pure bearings,
+  // right for the sky and far facades; a finite value trades near for far parallax.
+  double scene_distance_m = 0;
+  bool compensate_gains = true;
+  bool fill_unseen = true;
+  // Gain least squares (OpenCV GainCompensator's terms): sigma of the overlap mean difference,
+  // relative to the mean overlap intensity (OpenCV: 10 grey levels at mid-grey), and of the prior
+  // pulling each gain to 1. The prior only fixes the common scale and tames poorly observed
+  // cameras; a looser one than OpenCV's 0.1 lets ±30 % exposure differences be recovered.
+  double gain_sigma_n = 10.0 / 128.0;
+  double gain_sigma_g = 0.5;
+  double min_gain = 0.25, max_gain = 4.0;
+  // Overlap means sample every gain_sample_step-th output pixel in each direction.
+  int gain_sample_step = 4;
+  double black_level = 1e-3;  // mean linear intensity below which a frame counts as black
+  int threads = 0;            // CPU path: 0 = hardware concurrency
+
+  // Throws odvr::UsageError naming the bad field.
+  void Check() const;
+};
+
+// The per-rig, per-size table: for output pixel p, entries [offsets[p], offsets[p + 1]) give the
+// cameras that see its bearing, where (OpenCV pixel coordinates), and the feather weight.
+struct StitchLut {
+  struct Entry {
+    float u, v, weight;
+    std::uint32_t camera;
+  };
+  int width = 0, height = 0, cameras = 0;
+  std::vector<std::uint32_t> offsets;  // width * height + 1
+  std::vector<Entry> entries;
+  std::vector<std::uint32_t> gain_pixels;  // subsampled output pixels seen by two or more cameras
+
+  std::size_t pixel_count() const { return static_cast<std::size_t>(width) * static_cast<std::size_t>(height); }
+};
+
+StitchLut BuildStitchLut(const Rig& rig, const StitchOptions& options);
+
+// Least squares on overlap means (Brown & Lowe; OpenCV detail::GainCompensator):
+//   min_g  sum_{i != j} N_ij [ (g_i I_ij - g_j I_ji)^2 / sigma_n^2 + (1 - g_i)^2 / sigma_g^2 ]
+// where N_ij counts the samples seen by both i and j and I_ij is camera i's mean there.
+// Cameras with usable[i] false get gain 1 and take no part. Results are clamped to
+// [min_gain, max_gain].
+std::vector<double> SolveGains(const std::vector<std::vector<double>>& counts,
+                               const std::vector<std::vector<double>>& means, const std::vector<bool>& usable,
+                               const StitchOptions& options);
+
+// Fills pixels with valid[p] == 0 by pull-push (Gortler et al. 1996): average down a pyramid
+// (premultiplied by coverage, wrapping around the seam), then blend each level's own content
+// with the upsampled coarser level where its coverage is incomplete. Valid pixels keep their
+// values exactly. `pool` (optional) spreads the rows of each level over threads.
+void FillUnseen(sphere::EquirectImage* image, const std::vector<std::uint8_t>& valid, ThreadPool* pool = nullptr);
+
+struct StitchReport {
+  std::vector<double> gains;        // applied per camera (1 for unused ones)
+  std::vector<bool> camera_used;    // false: missing or black frame
+  std::vector<double> camera_mean;  // mean linear intensity of each input frame
+  double valid_fraction = 0;        // of output pixels (by count) seen by a used camera
+  double ms_prepare = 0, ms_gains = 0, ms_warp = 0, ms_fill = 0, ms_total = 0;
+
+  // "stitched 2048x1024 in 41.2 ms (valid 93.1 %), gains [1.02, ...], unused cameras: 3".
+  std::string Summary() const;
+};
+
+struct StitchedFrame {
+  sphere::EquirectImage image;      // linear RGB
+  std::vector<std::uint8_t> valid;  // per pixel: 1 where a used camera saw it
+  StitchReport report;
+};
+
+class Stitcher {
+ public:
+  // Builds the lookup table (and, for the GPU, the programs and buffers: a GL 4.5 context must
+  // be current, and stay current for every Stitch call). Throws odvr::Error / UsageError.
+  Stitcher(const Rig& rig, const StitchOptions& options);
+  ~Stitcher();
+  Stitcher(const Stitcher&) = delete;
+  Stitcher& operator=(const Stitcher&) = delete;
+
+  // `images[c]` is camera c's 8-bit BGR frame (OpenCV's order), or empty when missing.
+  StitchedFrame Stitch(const std::vector<cv::Mat>& images);
+  StitchedFrame Stitch(const FrameSet& set);
+
+  const StitchLut& lut() const;
+  const StitchOptions& options() const;
+  double lut_build_ms() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace odvr::capture

@@ -1,0 +1,110 @@
+// `odvr stitch` run as a user would, on two frames of ../shared/data/street_a.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kStreet = fs::path(ODVR_SHARED_DIR) / "data/street_a";
+
+struct CliRun {
+  int exit_code;
+  std::string out, err;
+};
+
+CliRun RunOdvr(const std::string& args) {
+  const std::string err_file = ::testing::TempDir() + "odvr_stitch_err_" + std::to_string(::getpid()) + ".txt";
+  const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
+  CliRun run{-1, "", ""};
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf{};
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) run.out.append(buf.data(), n);
+  const int status = ::pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (FILE* f = std::fopen(err_file.c_str(), "r")) {
+    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
+    std::fclose(f);
+  }
+  return run;
+}
+
+struct TempDir {
+  TempDir() {
+    dir = fs::temp_directory_path() / ("odvr_run_stitch_" + std::to_string(::getpid()) + "_" +
+                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir);
+  }
+  ~TempDir() { fs::remove_all(dir); }
+  fs::path dir;
+};
+
+TEST(RunStitch, StitchesTwoStreetFramesToPngOnTheCpu) {
+  if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
+  const TempDir t;
+  const fs::path out = t.dir / "pano";
+  const CliRun r = RunOdvr("stitch --rig " + (kStreet / "rig.json").string() + " --in " + (kStreet / "rig").string() +
+                           " --out " + out.string() + " --format png --size 512x256 --device cpu --frames 2 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["frames"].get<int>(), 2);
+  ASSERT_EQ(j["per_frame"].size(), 2u);
+  for (const auto& f : j["per_frame"]) {
+    EXPECT_GT(f["ms"].get<double>(), 0);
+    EXPECT_GT(f["valid_fraction"].get<double>(), 0.85);
+    EXPECT_EQ(f["gains"].size(), 6u);
+  }
+  for (const char* name : {"000000.png", "000001.png"}) {
+    const cv::Mat img = cv::imread((out / name).string());
+    ASSERT_FALSE(img.empty()) << name;
+    EXPECT_EQ(img.cols, 512);
+    EXPECT_EQ(img.rows, 256);
+    EXPECT_GT(cv::mean(img)[1], 20);  // an image, not black
+  }
+  EXPECT_FALSE(fs::exists(out / "000002.png"));
+}
+
+TEST(RunStitch, WritesAnMp4FromTheRigFilesOwnImageFolders) {
+  if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
+  const TempDir t;
+  const fs::path out = t.dir / "street.mp4";
+  // No --in: the rig file's image_dir entries name the camera folders.
+  const CliRun r = RunOdvr("stitch --rig " + (kStreet / "rig.json").string() + " --out " + out.string() +
+                           " --size 256x128 --device cpu --frames 2");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("stitched 2 frames"), std::string::npos) << r.out;
+  EXPECT_GT(fs::file_size(out), 1000u);
+}
+
+TEST(RunStitch, BadInputsEndInOneLine) {
+  const TempDir t;
+  const CliRun no_rig = RunOdvr("stitch --rig " + (t.dir / "missing.json").string() + " --in . --out " +
+                                (t.dir / "o").string() + " --device cpu");
+  EXPECT_EQ(no_rig.exit_code, 1);
+  EXPECT_NE(no_rig.err.find("missing.json"), std::string::npos) << no_rig.err;
+  EXPECT_EQ(std::count(no_rig.err.begin(), no_rig.err.end(), '\n'), 1) << no_rig.err;
+
+  const CliRun bad_size = RunOdvr("stitch --rig x.json --out o --size 12by3");
+  EXPECT_EQ(bad_size.exit_code, 2);
+  EXPECT_NE(bad_size.err.find("--size"), std::string::npos) << bad_size.err;
+
+  if (!fs::exists(kStreet / "rig.json")) return;
+  // Five camera folders for a six-camera rig.
+  for (int c = 0; c < 5; ++c)
+    fs::create_directory_symlink(kStreet / "rig" / ("cam" + std::to_string(c)), t.dir / ("cam" + std::to_string(c)));
+  const CliRun five = RunOdvr("stitch --rig " + (kStreet / "rig.json").string() + " --in " + t.dir.string() +
+                              " --out " + (t.dir / "o").string() + " --device cpu --frames 1");
+  EXPECT_EQ(five.exit_code, 1);
+  EXPECT_NE(five.err.find("delivers 5 cameras"), std::string::npos) << five.err;
+}
+
+}  // namespace
