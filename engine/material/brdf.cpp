@@ -1,0 +1,327 @@
+#include "engine/material/brdf.h"
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+
+namespace odvr::material {
+
+using lighting::Sg;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+glm::dvec3 Reflect(const glm::dvec3& w, const glm::dvec3& about) { return 2.0 * glm::dot(w, about) * about - w; }
+
+// A view at or below the horizon is moved up to n·wo = kMinCosView in its own azimuth (or the
+// frame's t when it has none), so both the analytic BRDF and the lobes see the same grazing view.
+glm::dvec3 BendView(const ShadingFrame& f, const glm::dvec3& wo) {
+  const double c = glm::dot(f.n, wo);
+  if (c >= kMinCosView) return wo;
+  glm::dvec3 tangential = wo - c * f.n;
+  const double l = glm::length(tangential);
+  tangential = l > 1e-12 ? tangential / l : f.t;
+  return std::sqrt(1.0 - kMinCosView * kMinCosView) * tangential + kMinCosView * f.n;
+}
+
+glm::dvec3 Schlick(const glm::dvec3& f0, double cos_theta) {
+  const double m = std::clamp(1.0 - cos_theta, 0.0, 1.0);
+  const double m2 = m * m;
+  return f0 + (glm::dvec3(1.0) - f0) * (m2 * m2 * m);
+}
+
+double NdfValue(Ndf ndf, double alpha, double cos_h) {
+  if (cos_h <= 0) return 0;
+  const double a2 = alpha * alpha, c2 = cos_h * cos_h;
+  if (ndf == Ndf::kGgx) {
+    const double d = c2 * (a2 - 1.0) + 1.0;
+    return a2 / (kPi * d * d);
+  }
+  return std::exp((c2 - 1.0) / (a2 * c2)) / (kPi * a2 * c2 * c2);
+}
+
+// Smith's Λ for a direction at cos θ from n (Heitz 2014); Beckmann through Walter et al. 2007's
+// rational fit, which is what every renderer uses and is within 0.4 % of the erf form.
+double SmithLambda(Ndf ndf, double alpha, double cos_theta) {
+  const double c = std::clamp(cos_theta, 1e-9, 1.0);
+  const double tan2 = std::max(0.0, 1.0 - c * c) / (c * c);
+  if (ndf == Ndf::kGgx) return 0.5 * (std::sqrt(1.0 + alpha * alpha * tan2) - 1.0);
+  if (tan2 <= 0) return 0;
+  const double a = 1.0 / (alpha * std::sqrt(tan2));
+  if (a >= 1.6) return 0;
+  return (1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a);
+}
+
+double SmithG(Ndf ndf, double alpha, double cos_i, double cos_o) {
+  return 1.0 / (1.0 + SmithLambda(ndf, alpha, cos_i) + SmithLambda(ndf, alpha, cos_o));
+}
+
+double ClampAlpha(double alpha) { return std::clamp(alpha, kMinAlpha, 1.0); }
+
+struct MrParams {
+  glm::dvec3 f0, c_diff;
+  double alpha;
+};
+
+MrParams FromMetallicRoughness(const MetallicRoughness& m) {
+  const double metallic = std::clamp(m.metallic, 0.0, 1.0);
+  const glm::dvec3 base = glm::clamp(m.base_color, 0.0, 1.0);
+  const double r = std::clamp(m.roughness, 0.0, 1.0);
+  return {glm::mix(glm::dvec3(0.04), base, metallic), base * (1.0 - metallic), ClampAlpha(r * r)};
+}
+
+// --- Analytic BRDFs (wo already bent, n·wi > 0) --------------------------------------------------
+
+glm::dvec3 Analytic(const Lambertian& m, const ShadingFrame&, const glm::dvec3&, const glm::dvec3&) {
+  return m.albedo / kPi;
+}
+
+glm::dvec3 Analytic(const Phong& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
+  const double c = glm::dot(Reflect(wo, f.n), wi);
+  if (c <= 0) return glm::dvec3(0);
+  return m.ks * ((m.exponent + 2.0) / (2.0 * kPi) * std::pow(c, m.exponent));
+}
+
+glm::dvec3 Analytic(const BlinnPhong& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
+  const double c = glm::dot(f.n, glm::normalize(wi + wo));
+  if (c <= 0) return glm::dvec3(0);
+  return m.ks * ((m.exponent + 8.0) / (8.0 * kPi) * std::pow(c, m.exponent));
+}
+
+glm::dvec3 Analytic(const Ward& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
+  const glm::dvec3 h = glm::normalize(wi + wo);
+  const double hn = glm::dot(h, f.n);
+  if (hn <= 0) return glm::dvec3(0);
+  const double hx = glm::dot(h, f.t) / m.alpha_x, hy = glm::dot(h, f.b) / m.alpha_y;
+  const double e = std::exp(-(hx * hx + hy * hy) / (hn * hn));
+  const double cos_i = glm::dot(f.n, wi), cos_o = glm::dot(f.n, wo);
+  return m.rho_s * (e / (4.0 * kPi * m.alpha_x * m.alpha_y * std::sqrt(cos_i * cos_o)));
+}
+
+glm::dvec3 Analytic(const CookTorrance& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
+  const double alpha = ClampAlpha(m.alpha);
+  const glm::dvec3 h = glm::normalize(wi + wo);
+  const double cos_i = glm::dot(f.n, wi), cos_o = glm::dot(f.n, wo);
+  const double d = NdfValue(m.ndf, alpha, glm::dot(f.n, h));
+  const double g = SmithG(m.ndf, alpha, cos_i, cos_o);
+  return Schlick(m.f0, glm::dot(wi, h)) * (d * g / (4.0 * cos_i * cos_o));
+}
+
+glm::dvec3 Analytic(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
+  const MrParams p = FromMetallicRoughness(m);
+  const glm::dvec3 h = glm::normalize(wi + wo);
+  const double cos_i = glm::dot(f.n, wi), cos_o = glm::dot(f.n, wo);
+  const glm::dvec3 fresnel = Schlick(p.f0, glm::dot(wo, h));
+  const double d = NdfValue(Ndf::kGgx, p.alpha, glm::dot(f.n, h));
+  const double g = SmithG(Ndf::kGgx, p.alpha, cos_i, cos_o);
+  return (glm::dvec3(1.0) - fresnel) * p.c_diff / kPi + fresnel * (d * g / (4.0 * cos_i * cos_o));
+}
+
+// --- Lobes ---------------------------------------------------------------------------------------
+
+// Adds one lobe whose M (everything but D and the cosine) is `m_at_axis`, handling the cosine.
+// A lobe whose axis is below the horizon is dropped: M is undefined there, and with the cosine at
+// the axis its weight would be 0 anyway.
+void Push(const Sg& sg, const glm::dvec3& m_at_axis, const ShadingFrame& f, CosineTerm cosine, std::vector<Lobe>* out) {
+  const double cos_axis = glm::dot(f.n, sg.axis);
+  if (cos_axis <= 0 || (m_at_axis.x <= 0 && m_at_axis.y <= 0 && m_at_axis.z <= 0)) return;
+  if (cosine == CosineTerm::kAtLobeAxis) {
+    out->push_back({sg, m_at_axis * cos_axis});
+  } else {
+    out->push_back({lighting::Product(sg, CosineSg(f.n)), m_at_axis});
+  }
+}
+
+// A Gaussian exp(−u²/2σL² − v²/2σS²) around `center` (u along the unit tangent `dir`) as a row
+// of isotropic SGs of σS. exp(−u²/2σL²) = σL/(σS σc √(2π)) ∫ exp(−τ²/2σc²) exp(−(u−τ)²/2σS²) dτ
+// with σc² = σL² − σS², discretised by the trapezoid rule at spacing δ. The integrand in τ is a
+// Gaussian of σ_eff = σS σc / σL, whose trapezoid error is 2 exp(−2π² σ_eff²/δ²): δ = 1.8 σ_eff
+// keeps it under 0.5 %. Nodes out to ±3σc, at most kMaxAnisotropicLobes of them (then δ grows),
+// weights renormalised to the exact integral. emit(axis, λ, amplitude factor) per SG.
+template <class Emit>
+void SplitRow(const glm::dvec3& center, const glm::dvec3& dir, double s_short, double s_long, Emit&& emit) {
+  const double lambda = 1.0 / (s_short * s_short);
+  const double s_conv = std::sqrt(std::max(0.0, s_long * s_long - s_short * s_short));
+  if (s_conv < 1e-3 * s_short) {
+    emit(center, lambda, 1.0);
+    return;
+  }
+  const double s_eff = s_short * s_conv / s_long;
+  const int half = std::clamp(int(std::floor(3.0 * s_conv / (1.8 * s_eff))), 1, (kMaxAnisotropicLobes - 1) / 2);
+  const double delta = 3.0 * s_conv / half;
+  double sum = 0;
+  for (int k = -half; k <= half; ++k) sum += std::exp(-(k * delta) * (k * delta) / (2.0 * s_conv * s_conv));
+  const double scale = (s_long / s_short) / sum;
+  for (int k = -half; k <= half; ++k) {
+    const double tau = k * delta;
+    emit(glm::normalize(center + tau * dir), lambda, scale * std::exp(-tau * tau / (2.0 * s_conv * s_conv)));
+  }
+}
+
+// Warps the half-vector lobe `d` to incident space (eq. 4.10, or split, see WarpMode) and adds
+// it with M evaluated at each resulting axis: m_of(wi) is M(wi, wo) with h = normalize(wi + wo).
+template <class MOf>
+void PushWarped(const Sg& d, MOf&& m_of, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
+                std::vector<Lobe>* out) {
+  const Sg w = WarpToIncident(d, wo);
+  const glm::dvec3 across = d.axis - glm::dot(d.axis, w.axis) * w.axis;  // in the plane of incidence
+  if (o.warp == WarpMode::kIsotropic || glm::length(across) < 1e-9 || d.lambda <= 0) {
+    Push(w, m_of(w.axis), f, o.cosine, out);
+    return;
+  }
+  const double cos_d = std::max(std::abs(glm::dot(wo, d.axis)), kMinCosView);
+  const double s_h = 1.0 / std::sqrt(d.lambda);
+  SplitRow(w.axis, glm::normalize(across), 2.0 * cos_d * s_h, 2.0 * s_h, [&](const glm::dvec3& c, double l, double a) {
+    Push(Sg{c, l, d.amplitude * a}, m_of(c), f, o.cosine, out);
+  });
+}
+
+void LobesOf(const Lambertian& m, const ShadingFrame& f, const glm::dvec3&, const LobeOptions&,
+             std::vector<Lobe>* out) {
+  out->push_back({CosineSg(f.n), m.albedo / kPi});
+}
+
+void LobesOf(const Phong& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
+             std::vector<Lobe>* out) {
+  const Sg lobe{Reflect(wo, f.n), std::max(0.0, m.exponent), 1.0};
+  Push(lobe, m.ks * ((m.exponent + 2.0) / (2.0 * kPi)), f, o.cosine, out);
+}
+
+void LobesOf(const BlinnPhong& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
+             std::vector<Lobe>* out) {
+  const glm::dvec3 ks = m.ks * ((m.exponent + 8.0) / (8.0 * kPi));
+  PushWarped(
+      Sg{f.n, std::max(0.0, m.exponent), 1.0}, [&](const glm::dvec3&) { return ks; }, f, wo, o, out);
+}
+
+void LobesOf(const Ward& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o, std::vector<Lobe>* out) {
+  const double ax = std::max(m.alpha_x, 1e-3), ay = std::max(m.alpha_y, 1e-3);
+  const double cos_o = glm::dot(f.n, wo);
+  const auto m_of = [&](const glm::dvec3& wi) {
+    const double cos_i = std::max(glm::dot(f.n, wi), kMinCosView);
+    return m.rho_s / (4.0 * kPi * ax * ay * std::sqrt(cos_i * cos_o));
+  };
+  // In tan θ_h coordinates (u along t, v along b) D = exp(−u²/αx² − v²/αy²): Gaussians of
+  // σ = α/√2, and an isotropic SG of λ has σ² = 1/λ near its axis.
+  const double s_short = std::min(ax, ay) / std::sqrt(2.0), s_long = std::max(ax, ay) / std::sqrt(2.0);
+  if (s_long - s_short < 1e-3 * s_short) {
+    PushWarped(Sg{f.n, 1.0 / (s_short * s_short), 1.0}, m_of, f, wo, o, out);
+    return;
+  }
+  // Anisotropic: split in half-vector space; each part is warped by eq. 4.10 alone (splitting
+  // again would square the lobe count).
+  LobeOptions iso = o;
+  iso.warp = WarpMode::kIsotropic;
+  SplitRow(f.n, ax >= ay ? f.t : f.b, s_short, s_long, [&](const glm::dvec3& c, double l, double a) {
+    if (glm::dot(c, wo) <= 0) return;  // a half vector facing away from the viewer reflects nothing
+    PushWarped(Sg{c, l, a}, m_of, f, wo, iso, out);
+  });
+}
+
+void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, const ShadingFrame& f, const glm::dvec3& wo,
+                      const LobeOptions& o, std::vector<Lobe>* out) {
+  alpha = ClampAlpha(alpha);
+  const double cos_o = glm::dot(f.n, wo);
+  const auto m_of = [&](const glm::dvec3& wi) {
+    const double cos_i = std::max(glm::dot(f.n, wi), kMinCosView);
+    const glm::dvec3 h = glm::normalize(wi + wo);
+    return Schlick(f0, glm::dot(wi, h)) * (SmithG(ndf, alpha, cos_i, cos_o) / (4.0 * cos_i * cos_o));
+  };
+  PushWarped(Sg{f.n, NdfSgLambda(alpha), 1.0 / (kPi * alpha * alpha)}, m_of, f, wo, o, out);
+}
+
+void LobesOf(const CookTorrance& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
+             std::vector<Lobe>* out) {
+  PushCookTorrance(m.f0, m.alpha, m.ndf, f, wo, o, out);
+}
+
+void LobesOf(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
+             std::vector<Lobe>* out) {
+  const MrParams p = FromMetallicRoughness(m);
+  const glm::dvec3 diffuse = (glm::dvec3(1.0) - Schlick(p.f0, glm::dot(f.n, wo))) * p.c_diff / kPi;
+  if (diffuse.x > 0 || diffuse.y > 0 || diffuse.z > 0) out->push_back({CosineSg(f.n), diffuse});
+  PushCookTorrance(p.f0, p.alpha, Ndf::kGgx, f, wo, o, out);
+}
+
+}  // namespace
+
+ShadingFrame ShadingFrame::FromNormal(const glm::dvec3& n, const glm::dvec3& tangent_hint) {
+  ShadingFrame f;
+  f.n = glm::normalize(n);
+  glm::dvec3 t = tangent_hint - glm::dot(tangent_hint, f.n) * f.n;
+  if (glm::length(t) < 1e-6) {
+    const glm::dvec3 other = std::abs(f.n.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 0, 1);
+    t = other - glm::dot(other, f.n) * f.n;
+  }
+  f.t = glm::normalize(t);
+  f.b = glm::cross(f.n, f.t);
+  return f;
+}
+
+double NdfSgLambda(double alpha) {
+  alpha = ClampAlpha(alpha);
+  // I(λ) = ∫₀¹ e^{λ(x−1)} x dx = 1/λ − (1 − e^{−λ})/λ² decreases from 1/2 (λ = 0) to 0; the
+  // condition (2/α²) I(λ) = 1 is I(λ) = α²/2. Bisection: robust for every α in [kMinAlpha, 1].
+  const auto integral = [](double l) {
+    if (l < 1e-3) return 0.5 - l / 6.0 + l * l / 24.0;
+    return 1.0 / l + std::expm1(-l) / (l * l);
+  };
+  const double target = 0.5 * alpha * alpha;
+  double lo = 0, hi = 2.0 / (alpha * alpha) + 1.0;
+  if (integral(lo) <= target) return 0;
+  for (int i = 0; i < 80; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (integral(mid) > target ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+Sg WarpToIncident(const Sg& half_vector_lobe, const glm::dvec3& wo) {
+  const double d = glm::dot(wo, half_vector_lobe.axis);
+  Sg w;
+  w.axis = glm::normalize(Reflect(wo, half_vector_lobe.axis));
+  // The Jacobian |dh/dwi| = 1/(4 |wo·h|) at the axis; clamped so a grazing view stays finite.
+  w.lambda = half_vector_lobe.lambda / (4.0 * std::max(std::abs(d), kMinCosView));
+  w.amplitude = half_vector_lobe.amplitude;
+  return w;
+}
+
+Sg CosineSg(const glm::dvec3& n) { return Sg{n, kCosineSgLambda, kCosineSgAmplitude}; }
+
+glm::dvec3 Evaluate(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wi, const glm::dvec3& wo) {
+  if (glm::dot(frame.n, wi) <= 0) return glm::dvec3(0);
+  const glm::dvec3 v = BendView(frame, wo);
+  return std::visit([&](const auto& m) { return Analytic(m, frame, wi, v); }, brdf);
+}
+
+void AppendLobes(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wo, std::vector<Lobe>* lobes,
+                 const LobeOptions& options) {
+  const glm::dvec3 v = BendView(frame, wo);
+  std::visit([&](const auto& m) { LobesOf(m, frame, v, options, lobes); }, brdf);
+}
+
+std::vector<Lobe> Lobes(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wo, const LobeOptions& options) {
+  std::vector<Lobe> lobes;
+  AppendLobes(brdf, frame, wo, &lobes, options);
+  return lobes;
+}
+
+glm::dvec3 ShadeUnderSgLight(std::span<const Lobe> lobes, const lighting::RgbSg& light, const Sg* visibility) {
+  const Sg l{light.axis, light.lambda, 1.0};
+  glm::dvec3 sum(0);
+  for (const Lobe& lobe : lobes) {
+    const double i =
+        visibility ? lighting::IntegralOfProduct(lobe.sg, l, *visibility) : lighting::IntegralOfProduct(lobe.sg, l);
+    sum += lobe.weight * i;
+  }
+  return sum * glm::dvec3(light.amplitude);
+}
+
+glm::dvec3 ShadeUnderSgLights(std::span<const Lobe> lobes, std::span<const lighting::RgbSg> lights) {
+  glm::dvec3 sum(0);
+  for (const auto& light : lights) sum += ShadeUnderSgLight(lobes, light);
+  return sum;
+}
+
+}  // namespace odvr::material

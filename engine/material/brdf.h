@@ -1,0 +1,161 @@
+#pragma once
+// BRDF models and their spherical-Gaussian lobes (seed §4.2, DESIGN.md §5).
+//
+// Conventions
+// - Directions are unit vectors pointing away from the surface: `wi` towards the light, `wo`
+//   towards the viewer; `n` is the unit shading normal. f is in sr⁻¹, per RGB channel.
+// - Reflected radiance L_o(wo) = ∫ f(wi, wo) L(wi) max(0, n·wi) dwi. The lobes below approximate
+//   the whole integrand factor f(wi, wo) · max(0, n·wi) as a function of wi for one wo:
+//     f(wi, wo) max(0, n·wi) ≈ Σ_k weight_k · G(wi; c_k, λ_k, μ_k),
+//   so shading under SG lighting (and SG visibility) is a sum of closed-form SG integrals.
+// - A view at or below the horizon (n·wo < kMinCosView) is treated as grazing at kMinCosView,
+//   in the analytic BRDFs and the lobes alike, so silhouettes with bent shading normals never go
+//   black or divide by zero.
+//
+// Approximations (each measured against quadrature of the analytic BRDF in brdf_test.cpp)
+// - Microfacet BRDFs are M(wi, wo) D(h) (eq. 4.8). D is one SG in half-vector space around n (a
+//   row of SGs for anisotropic Ward), warped to incident-direction space by eq. 4.10 after Wang et
+//   al. 2009: axis c' = 2(wo·c)c − wo (the view reflected about the lobe axis c),
+//   λ' = λ / (4 |wo·c|), μ' = μ. M (Fresnel, shadowing-masking, the 1/(n·wi n·wo) factors) is
+//   evaluated at the warped axis wi = c', where it is smooth compared with D.
+// - The cosine max(0, n·wi): for lobes it is, by default, folded into the weight at the lobe axis
+//   (CosineTerm::kAtLobeAxis); CosineTerm::kAsSg multiplies the lobe by the clamped-cosine SG
+//   instead. The Lambertian lobe always *is* the clamped-cosine SG: λ = 2.133, μ = 1.170
+//   (Wang et al. 2009's fit of max(0, cos θ)), whose tail below the horizon is ≤ 0.139 and falls
+//   to 0.016 at the nadir: diffuse light from below leaks at that level.
+// - Phong's lobe already lives around the reflected direction r = 2(n·wo)n − wo: cosⁿ(r·wi) ≈
+//   SG(r, λ = n) with no warp. Blinn-Phong: (n·h)^s ≈ SG(h; n, λ = s), then the warp.
+// - Ward: exp(−tan²θ_h/α²) ≈ SG(h; n, λ = 2/α²) (equal curvature at the peak). Anisotropic:
+//   the Gaussian along the wider tangent is written as a convolution of the narrow isotropic SG
+//   with a 1D Gaussian and sampled with a trapezoid rule (ripple < 0.5 %): 2K+1 isotropic SGs of
+//   λ = 2/α_min² on a line along the wide tangent (at most kMaxAnisotropicLobes).
+// - Cook-Torrance: D (GGX or Beckmann, α) ≈ SG(h; n, λ(α), μ = 1/(π α²)), with λ(α) solving
+//   2π μ ∫₀¹ e^{λ(x−1)} x dx = 1: the SG has D's peak value and D's normalisation over the
+//   hemisphere. λ(α) → 2/α² − 1 as α → 0, and λ(1) = 0 (GGX at α = 1 *is* the constant 1/π).
+//   F is Schlick's, G the height-correlated Smith term 1/(1 + Λ(wi) + Λ(wo)) of the chosen NDF.
+// - glTF metallic-roughness (glTF 2.0 spec, appendix B): α = roughness² clamped to ≥ kMinAlpha,
+//   F0 = mix(0.04, base, metallic), c_diff = base (1 − metallic); f = (1 − F(wo·h)) c_diff/π +
+//   D F V with GGX. The lobes: the Lambertian lobe scaled by (1 − F) at h = n, plus the GGX lobe.
+//
+// What that costs (brdf_test.cpp prints the table; SG light λ 10–1000, views 0–75°, error against
+// quadrature): with a light aimed at the mirror direction 0.03 % (Phong n = 10⁴) to ~50 % (GGX,
+// whose peak is sharper and tails heavier than any one SG); with the light 25° off it, up to
+// ~100 % for glossy lobes, because eq. 4.10's isotropic lobe is too narrow in the plane of
+// incidence — WarpMode::kAnisotropicSplit cuts those to ~30 %. Lambertian: ≤ 18 % (the SG's peak
+// is 1.17). At grazing views (85–89°) the cosine at the axis goes to 0 and the errors are O(1).
+#include <glm/vec3.hpp>
+#include <span>
+#include <variant>
+#include <vector>
+
+#include "engine/lighting/sg.h"
+#include "engine/lighting/sg_lighting.h"
+
+namespace odvr::material {
+
+inline constexpr double kMinCosView = 1e-3;
+inline constexpr double kMinAlpha = 0.01;  // mirror limit: λ ≈ 2·10⁴ in half-vector space
+inline constexpr int kMaxAnisotropicLobes = 15;
+// Wang et al. 2009's single-SG fit of the clamped cosine max(0, n·w).
+inline constexpr double kCosineSgLambda = 2.133;
+inline constexpr double kCosineSgAmplitude = 1.170;
+
+// The surface frame: n the normal; t, b the tangent and bitangent (only anisotropic Ward uses
+// them). Right-handed and orthonormal: b = n × t.
+struct ShadingFrame {
+  glm::dvec3 n{0, 1, 0};
+  glm::dvec3 t{1, 0, 0};
+  glm::dvec3 b{0, 0, -1};
+  // A frame around `n` with t as close to `tangent_hint` as orthogonality allows.
+  static ShadingFrame FromNormal(const glm::dvec3& n, const glm::dvec3& tangent_hint = {1, 0, 0});
+};
+
+struct Lambertian {
+  glm::dvec3 albedo{0.8};  // ρ ∈ [0, 1]: f = ρ/π
+};
+
+// f = ks (n+2)/(2π) max(0, r·wi)^n, r the mirror of wo: energy-normalised Phong.
+struct Phong {
+  glm::dvec3 ks{1};
+  double exponent = 50;
+};
+
+// f = ks (s+8)/(8π) (n·h)^s, the usual approximately energy-normalised Blinn-Phong.
+struct BlinnPhong {
+  glm::dvec3 ks{1};
+  double exponent = 50;
+};
+
+// f = ρs / (4π αx αy √(cosθi cosθo)) exp(−tan²θh (cos²φh/αx² + sin²φh/αy²)); φh measured from
+// the frame's t. αx = αy is the isotropic Ward.
+struct Ward {
+  glm::dvec3 rho_s{0.5};
+  double alpha_x = 0.2;
+  double alpha_y = 0.2;
+};
+
+enum class Ndf { kGgx, kBeckmann };
+
+// f = D(h) F(wi·h) G(wi, wo) / (4 (n·wi)(n·wo)).
+struct CookTorrance {
+  glm::dvec3 f0{0.04};  // Fresnel reflectance at normal incidence (Schlick)
+  double alpha = 0.2;   // GGX α or Beckmann m
+  Ndf ndf = Ndf::kGgx;
+};
+
+// glTF 2.0 metallic-roughness, already sampled (base colour linear, not sRGB).
+struct MetallicRoughness {
+  glm::dvec3 base_color{0.8};
+  double metallic = 0;
+  double roughness = 0.5;  // perceptual
+};
+
+using Brdf = std::variant<Lambertian, Phong, BlinnPhong, Ward, CookTorrance, MetallicRoughness>;
+
+// One term of the lobe sum: weight ⊙ G(wi; sg).
+struct Lobe {
+  lighting::Sg sg;
+  glm::dvec3 weight{1};
+};
+
+enum class CosineTerm { kAtLobeAxis, kAsSg };
+
+// kIsotropic is eq. 4.10: one SG per half-vector SG, λ' = λ/(4|wo·c|). The true warped lobe is
+// anisotropic: in the plane of incidence h turns by half the angle wi turns (σ_in = 2σ_h), across
+// it by 1/(2cosθ_d) of it (σ_out = 2 cosθ_d σ_h, θ_d the angle between wo and c); eq. 4.10 gives
+// both the geometric mean. kAnisotropicSplit writes that anisotropic lobe as a row of isotropic
+// SGs of σ_out along the plane of incidence (the same 1D split as anisotropic Ward, at most
+// kMaxAnisotropicLobes), each with M and the cosine at its own axis: more SGs, much less error
+// at oblique and grazing views.
+enum class WarpMode { kIsotropic, kAnisotropicSplit };
+
+struct LobeOptions {
+  CosineTerm cosine = CosineTerm::kAtLobeAxis;
+  WarpMode warp = WarpMode::kIsotropic;
+};
+
+// The analytic BRDF f(wi, wo); 0 for wi below the horizon.
+glm::dvec3 Evaluate(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wi, const glm::dvec3& wo);
+
+// Appends the SG lobes of f(·, wo) · max(0, n·wi) to `lobes` (which it does not clear, so
+// several materials can share one list). Lobes with zero weight are left out.
+void AppendLobes(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wo, std::vector<Lobe>* lobes,
+                 const LobeOptions& options = {});
+std::vector<Lobe> Lobes(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wo,
+                        const LobeOptions& options = {});
+
+// Outgoing radiance under one RGB SG light: Σ_k weight_k ⊙ μ_L ∫ G_k G_L (eq. 4.7, closed form).
+// With `visibility`, the triple product Σ_k weight_k ⊙ μ_L ∫ G_k G_L G_V.
+glm::dvec3 ShadeUnderSgLight(std::span<const Lobe> lobes, const lighting::RgbSg& light,
+                             const lighting::Sg* visibility = nullptr);
+glm::dvec3 ShadeUnderSgLights(std::span<const Lobe> lobes, std::span<const lighting::RgbSg> lights);
+
+// Building blocks, public for the renderer's shaders to mirror and for tests.
+// λ of the SG fit of a GGX/Beckmann NDF of roughness α (see the header comment).
+double NdfSgLambda(double alpha);
+// Eq. 4.10: warps an SG in half-vector space to incident-direction space for the view wo.
+lighting::Sg WarpToIncident(const lighting::Sg& half_vector_lobe, const glm::dvec3& wo);
+// The clamped cosine around n as an SG.
+lighting::Sg CosineSg(const glm::dvec3& n);
+
+}  // namespace odvr::material
