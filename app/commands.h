@@ -21,6 +21,9 @@ const std::vector<CommandSpec>& Commands();
 CommandFn AddInfo(CLI::App* sub);
 CommandFn AddPlay(CLI::App* sub);
 CommandFn AddStitch(CLI::App* sub);
+CommandFn AddLight(CLI::App* sub);
+CommandFn AddBench(CLI::App* sub);
+CommandFn AddBenchLight(CLI::App* sub);
 
 // media/demo/street.mp4 beside the sources or the working directory; throws if absent.
 std::string DefaultDemoVideo();

@@ -14,6 +14,8 @@ const std::vector<CommandSpec>& Commands() {
       {"info", "Print the OpenGL context, its compute limits and library versions", AddInfo},
       {"play", "Play a 360° video with free look (headless: render frames to PNG)", AddPlay},
       {"stitch", "Stitch rig frames into equirectangular frames (GPU or CPU), with per-frame times", AddStitch},
+      {"light", "Turn an equirect frame into the multiscale SG lighting model, with its errors", AddLight},
+      {"bench", "Benchmarks: speed beside error, as tables and plots in docs/benchmarks", AddBench},
   };
   return commands;
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "engine/core/error.h"
+#include "engine/lighting/residual_transform_gpu.h"
 #include "engine/sphere/resample.h"
 
 namespace odvr::lighting {
@@ -13,7 +14,8 @@ LightingBuilder::LightingBuilder(LightingOptions options) : options_(options), t
   if (options_.peak_grid_width < 64) throw Error("peak grid width", "must be at least 64");
 }
 
-SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingReport* report) {
+SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingReport* report,
+                                  ResidualTransformGpu* gpu) {
   const auto start = std::chrono::steady_clock::now();
   LightingReport r;
   SgLighting model;
@@ -29,11 +31,12 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
   if (options_.detect_peaks) {
     r.peak_detection = DetectPeaks(*source, options_.peaks);
     r.peaks_ms = r.peak_detection.ms;
-    model = transform_.Run(r.peak_detection.residue, &r.transform);
+    model =
+        gpu ? gpu->Run(r.peak_detection.residue, &r.transform) : transform_.Run(r.peak_detection.residue, &r.transform);
     for (const auto& p : r.peak_detection.peaks) model.peaks.insert(model.peaks.end(), p.sgs.begin(), p.sgs.end());
     r.peak_detection.residue = {};
   } else {
-    model = transform_.Run(*source, &r.transform);
+    model = gpu ? gpu->Run(*source, &r.transform) : transform_.Run(*source, &r.transform);
   }
   r.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   if (report) *report = std::move(r);

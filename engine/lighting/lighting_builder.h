@@ -24,10 +24,14 @@ struct LightingReport {
   double total_ms = 0;
 };
 
+class ResidualTransformGpu;
+
 class LightingBuilder {
  public:
   explicit LightingBuilder(LightingOptions options = {});
-  SgLighting Build(const sphere::EquirectImage& frame, LightingReport* report = nullptr);
+  // With `gpu` (its context current), the residual transform runs there; peaks stay on the CPU.
+  SgLighting Build(const sphere::EquirectImage& frame, LightingReport* report = nullptr,
+                   ResidualTransformGpu* gpu = nullptr);
   ResidualTransform& transform() { return transform_; }
   const LightingOptions& options() const { return options_; }
 

@@ -1,0 +1,28 @@
+// odvr bench …: benchmark programs that print speed beside error (never timed tests).
+#include "app/commands.h"
+
+namespace odvr::app {
+
+CommandFn AddBench(CLI::App* sub) {
+  sub->require_subcommand(1, 1);
+  struct Kind {
+    const char* name;
+    const char* summary;
+    CommandFn (*add)(CLI::App*);
+  };
+  static const Kind kinds[] = {
+      {"light", "Lighting transform: errors and time per level, against least squares and SH", AddBenchLight},
+  };
+  auto runners = std::make_shared<std::vector<std::pair<CLI::App*, CommandFn>>>();
+  for (const auto& k : kinds) {
+    CLI::App* s = sub->add_subcommand(k.name, k.summary);
+    runners->emplace_back(s, k.add(s));
+  }
+  return [runners] {
+    for (auto& [s, run] : *runners)
+      if (s->parsed()) return run();
+    return 2;
+  };
+}
+
+}  // namespace odvr::app
