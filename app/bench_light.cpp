@@ -197,8 +197,8 @@ int RunBenchLight(BenchLightOptions o) {
               model = builder.Build(frame, &report, device == "gpu" ? gpu.get() : nullptr);
               times.push_back(report.total_ms);
             }
-            rows.push_back({name, width, peaks ? "sg+peaks" : "sg", std::string(device), levels, model.sg_count(), Median(times),
-                            evaluator.Evaluate(model)});
+            rows.push_back({name, width, peaks ? "sg+peaks" : "sg", std::string(device), levels, model.sg_count(),
+                            Median(times), evaluator.Evaluate(model)});
           }
         gpu.reset();
       }
