@@ -1,5 +1,6 @@
 #include "engine/lighting/peak_detector.h"
 
+#include <spdlog/spdlog.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -8,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/core/error.h"
+#include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 
 namespace odvr::lighting {
@@ -68,10 +70,21 @@ void PeakDetectorOptions::Check() const {
   if (max_peaks < 0) throw Error("max peaks", "must be >= 0");
 }
 
-PeakDetection DetectPeaks(const sphere::EquirectImage& frame, const PeakDetectorOptions& options) {
+PeakDetection DetectPeaks(const sphere::EquirectImage& input, const PeakDetectorOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   options.Check();
   PeakDetection out;
+  // One NaN would make the mean radiance NaN and cost the frame its sun; an Inf would set the
+  // threshold to Inf. Bad pixels are 0 here, as they are in the transform.
+  sphere::EquirectImage clean;
+  const bool dirty =
+      std::any_of(input.rgb.begin(), input.rgb.end(), [](float v) { return !(v >= 0) || std::isinf(v); });
+  if (dirty) {
+    clean = input;
+    const auto [bad, negative] = image::SanitizePixels(&clean);
+    spdlog::warn("peak detection input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
+  }
+  const sphere::EquirectImage& frame = dirty ? clean : input;
   out.residue = frame;
   const int w = frame.width, h = frame.height;
   if (w < 4 || h < 2) throw Error("peak detection", "frame too small");
