@@ -22,6 +22,8 @@ struct LightOptions {
   std::string input;
   int levels = 5;
   double threshold = 0.01;
+  int sweeps = lighting::ResidualTransformOptions{}.sweeps;
+  int base_width = lighting::ResidualTransformOptions{}.base_width;
   bool no_peaks = false;
   std::string device = "cpu";
   std::string out;
@@ -41,6 +43,8 @@ int RunLight(const LightOptions& o) {
   lighting::LightingOptions options;
   options.transform.levels = o.levels;
   options.transform.stop_threshold = o.threshold;
+  options.transform.sweeps = o.sweeps;
+  options.transform.base_width = o.base_width;
   options.detect_peaks = !o.no_peaks;
 
   // The GPU path needs a context for as long as the transform lives.
@@ -118,6 +122,10 @@ CommandFn AddLight(CLI::App* sub) {
   sub->add_option("--levels", o->levels, "HEALPix levels to fit at most (1..6)")->check(CLI::Range(1, 6));
   sub->add_option("--threshold", o->threshold, "Stop when the mean |residue| falls below this × mean radiance")
       ->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--sweeps", o->sweeps, "Projection passes per level (1: the seed's; 2: closer to least squares)")
+      ->check(CLI::Range(1, 16));
+  sub->add_option("--base-width", o->base_width, "Working-grid width of level 0, doubling per level")
+      ->check(CLI::Range(8, 4096));
   sub->add_flag("--no-peaks", o->no_peaks, "Do not take suns and lamps out as free-form SGs first");
   sub->add_option("--device", o->device, "Where the residual transform runs")->check(CLI::IsMember({"cpu", "gpu"}));
   sub->add_option("--out", o->out, "Write the lighting model (lighting.json)");

@@ -17,6 +17,8 @@ function(odvr_embed_shaders target shader_dir)
   find_program(GLSLANG_VALIDATOR glslangValidator)
   set(check_stamps)
   if(GLSLANG_VALIDATOR)
+    # Ninja makes an output's folder itself; other generators do not.
+    file(MAKE_DIRECTORY "${CMAKE_CURRENT_BINARY_DIR}/generated/checked")
     foreach(file IN LISTS shader_files)
       get_filename_component(fname "${file}" NAME)
       get_filename_component(ext "${file}" EXT)
