@@ -24,6 +24,7 @@ CommandFn AddStitch(CLI::App* sub);
 CommandFn AddLight(CLI::App* sub);
 CommandFn AddBench(CLI::App* sub);
 CommandFn AddBenchLight(CLI::App* sub);
+CommandFn AddBenchStitch(CLI::App* sub);
 
 // media/demo/street.mp4 beside the sources or the working directory; throws if absent.
 std::string DefaultDemoVideo();

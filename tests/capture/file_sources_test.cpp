@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -152,6 +153,43 @@ TEST_F(FileSources, ATruncatedOrCorruptVideoEndsCleanlyWithoutACrash) {
     EXPECT_GE(sets, 10) << name;  // the frames before the damage are all there
     EXPECT_LE(sets, 30) << name;
   }
+}
+
+TEST_F(FileSources, OneCorruptFrameInsideAVideoCostsAtMostThatFrame) {
+  const auto path = WriteVideo("one_bad.avi", 30);
+  // Garble the entropy-coded data of frame 15 only: the 16th JPEG start-of-image marker, past its
+  // headers; the AVI index and chunk sizes stay intact, so the demuxer still finds every frame.
+  std::string bytes;
+  {
+    std::ifstream f(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(f), {});
+  }
+  std::size_t soi = 0;
+  for (int k = 0; k <= 15; ++k) {
+    soi = bytes.find("\xFF\xD8\xFF", k == 0 ? 0 : soi + 3);
+    ASSERT_NE(soi, std::string::npos) << "frame " << k;
+  }
+  const std::size_t sos = bytes.find("\xFF\xDA", soi);  // start of scan: the pixels follow
+  ASSERT_NE(sos, std::string::npos);
+  for (std::size_t i = sos + 16; i < sos + 216 && i < bytes.size(); ++i) bytes[i] = static_cast<char>(0xFF ^ (i * 37));
+  {
+    std::ofstream f(path, std::ios::binary | std::ios::trunc);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+
+  auto source = OpenSource(path.string());
+  int sets = 0;
+  cv::Mat last;
+  while (auto set = source->Next()) {
+    ASSERT_FALSE(set->frames[0].image.empty());
+    last = set->frames[0].image;
+    ++sets;
+  }
+  // The frame is skipped (or decoded with garbage in it): the stream goes on past it.
+  EXPECT_GE(sets, 29);
+  EXPECT_LE(sets, 30);
+  ASSERT_FALSE(last.empty());
+  EXPECT_NEAR(last.at<cv::Vec3b>(28, 60)[0], 29 * 8 % 256, 8);  // the last frame is frame 29
 }
 
 TEST_F(FileSources, BadSpecsAreOneLineErrorsNamingThePath) {

@@ -1,0 +1,133 @@
+// `odvr bench stitch` run as a user would, on one frame of ../shared/data/street_a at a small size.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kStreet = fs::path(ODVR_SHARED_DIR) / "data/street_a";
+
+struct CliRun {
+  int exit_code;
+  std::string out, err;
+};
+
+CliRun RunOdvr(const std::string& args) {
+  const std::string err_file = ::testing::TempDir() + "odvr_bench_stitch_err_" + std::to_string(::getpid()) + ".txt";
+  const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
+  CliRun run{-1, "", ""};
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf{};
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) run.out.append(buf.data(), n);
+  const int status = ::pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (FILE* f = std::fopen(err_file.c_str(), "r")) {
+    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
+    std::fclose(f);
+  }
+  return run;
+}
+
+struct TempDir {
+  TempDir() {
+    dir = fs::temp_directory_path() / ("odvr_bench_stitch_" + std::to_string(::getpid()) + "_" +
+                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir);
+  }
+  ~TempDir() { fs::remove_all(dir); }
+  fs::path dir;
+};
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+struct TsvRow {
+  double ms, psnr_valid, psnr_seams;
+};
+
+// method -> row, for the one frame the test asks for.
+std::map<std::string, TsvRow> ReadTsv(const fs::path& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "frame\tmethod\tms\tpsnr_valid_db\tpsnr_seams_db");
+  std::map<std::string, TsvRow> rows;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream s(line);
+    for (std::string field; std::getline(s, field, '\t');) f.push_back(field);
+    if (f.size() != 5) {
+      ADD_FAILURE() << "a row without 5 columns: " << line;
+      continue;
+    }
+    EXPECT_EQ(f[0], "0");
+    rows[f[1]] = {std::stod(f[2]), std::stod(f[3]), std::stod(f[4])};
+  }
+  return rows;
+}
+
+TEST(BenchStitch, ScoresBothPipelinesAndComputesTheTargetsFromTheRows) {
+  if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
+  const TempDir t;
+  const CliRun r = RunOdvr("bench stitch --frames 0 --width 256 --height 128 --repeats 1 --out " + t.dir.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto rows = ReadTsv(t.dir / "stitch.tsv");
+  ASSERT_EQ(rows.size(), 2u);
+  ASSERT_TRUE(rows.count("odvr cpu") && rows.count("opencv"));
+  // Measured at 256x128: 25.8 / 24.9 dB (odvr, valid / seams) and 25.7 / 25.5 dB (OpenCV). A
+  // pipeline given the wrong geometry or the wrong channel order scores near 12 dB.
+  for (const auto& [method, row] : rows) {
+    EXPECT_GT(row.ms, 0) << method;
+    EXPECT_GT(row.psnr_valid, 24.0) << method;
+    EXPECT_GT(row.psnr_seams, 23.5) << method;
+    EXPECT_LT(row.psnr_valid, 40.0) << method;  // the truth's own noise bounds it
+  }
+  // The target line reports what the rows say, not a typed figure.
+  const TsvRow& cpu = rows.at("odvr cpu");
+  const TsvRow& cv = rows.at("opencv");
+  const std::string md = ReadText(t.dir / "stitch.md");
+  EXPECT_NE(md.find("## Targets (issue 7)"), std::string::npos) << md;
+  const double speedup = cv.ms / cpu.ms, dv = cpu.psnr_valid - cv.psnr_valid, ds = cpu.psnr_seams - cv.psnr_seams;
+  const bool met = speedup >= 5 && dv >= -0.05 && ds >= -0.05;
+  EXPECT_NE(md.find(met ? "equal or better PSNR: met.**" : "equal or better PSNR: not met.**"), std::string::npos)
+      << md;
+  EXPECT_NE(md.find(fmt::format("Speed-up of `odvr cpu` over `opencv`: {:.1f}×", speedup)), std::string::npos) << md;
+  EXPECT_NE(md.find(fmt::format("{:+.2f} dB over the valid mask, {:+.2f} dB over the seams", dv, ds)),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("**GPU:** not timed"), std::string::npos) << md;
+  EXPECT_TRUE(fs::exists(t.dir / "stitch.gnuplot"));
+}
+
+TEST(BenchStitch, BadInputsEndInOneLine) {
+  const TempDir t;
+  const CliRun missing = RunOdvr("bench stitch --dataset " + t.dir.string() + " --out " + t.dir.string());
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.err.find("has no rig.json"), std::string::npos) << missing.err;
+  const CliRun tiny = RunOdvr("bench stitch --width 3 --out " + t.dir.string());
+  EXPECT_NE(tiny.exit_code, 0);
+  EXPECT_NE(tiny.err.find("--width"), std::string::npos) << tiny.err;
+  if (!fs::exists(kStreet / "rig.json")) return;
+  const CliRun absent = RunOdvr("bench stitch --frames 9999 --width 64 --height 32 --out " + t.dir.string());
+  EXPECT_NE(absent.exit_code, 0);
+  EXPECT_NE(absent.err.find("009999.jpg: cannot read the rig image"), std::string::npos) << absent.err;
+  EXPECT_FALSE(fs::exists(t.dir / "stitch.md"));
+}
+
+}  // namespace
