@@ -41,6 +41,8 @@ struct BenchLightOptions {
   bool least_squares = true;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
+  int sweeps = lighting::ResidualTransformOptions{}.sweeps;
+  int base_width = lighting::ResidualTransformOptions{}.base_width;
 };
 
 struct Row {
@@ -317,6 +319,8 @@ int RunBenchLight(BenchLightOptions o) {
             lighting::LightingOptions lo;
             lo.transform.levels = levels;
             lo.transform.stop_threshold = 0;  // the bench measures each level count as asked
+            lo.transform.sweeps = o.sweeps;
+            lo.transform.base_width = o.base_width;
             lo.detect_peaks = peaks;
             lighting::LightingBuilder builder(lo);
             if (device == "gpu") gpu = std::make_unique<lighting::ResidualTransformGpu>(lo.transform);
@@ -353,6 +357,8 @@ CommandFn AddBenchLight(CLI::App* sub) {
   sub->add_flag("--gpu", o->gpu, "Also time the GPU path (needs an OpenGL 4.5 context)");
   sub->add_flag("!--no-least-squares", o->least_squares, "Skip the least-squares optimum (slow)");
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
+  sub->add_option("--sweeps", o->sweeps, "Projection passes per level of the transform")->check(CLI::Range(1, 16));
+  sub->add_option("--base-width", o->base_width, "Working-grid width of level 0")->check(CLI::Range(8, 4096));
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchLight(*o); };
 }

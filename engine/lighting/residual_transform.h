@@ -3,7 +3,7 @@
 // DESIGN.md §4): an equirect frame becomes a constant plus SGs on the HEALPix levels, coarse to
 // fine, each level fitting what the coarser ones left.
 //
-// Per level s with lobe λ_s, on a working grid that resolves its lobes (64·2^s pixels wide,
+// Per level s with lobe λ_s, on a working grid that resolves its lobes (32·2^s pixels wide, at least 64,
 // capped at the input's width):
 //   residue   r_s = I_s − R_{<s}            (I_s: the input area-resampled to the grid,
 //                                            R_{<s}: the reconstruction of the coarser levels)
@@ -48,9 +48,13 @@ struct ResidualTransformOptions {
   double keep_threshold = 1e-3;  // drop SRBFs whose max |μ| < this × mean radiance
   bool constant_term = true;
   Normalization normalization = Normalization::kPartition;
-  int sweeps = 2;       // eq. 4.17 passes per level; 1 is the seed's single pass
-  int base_width = 64;  // working width of level 0; doubles per level up to the input width
-  int threads = 0;      // CPU threads (0: all cores)
+  int sweeps = 2;  // eq. 4.17 passes per level; 1 is the seed's single pass
+  // Working width of level s: base_width·2^s (at least 64, at most the input's). 32 puts level 4
+  // (σ = 1.5°) on a 512-wide grid, two pixels per σ: `odvr bench light --base-width 32|64` on
+  // sky, city and park at 2048 wide measured 5-10x less time for the same convolved errors
+  // within 0.001 (docs/benchmarks/lighting.md).
+  int base_width = 32;
+  int threads = 0;  // CPU threads (0: all cores)
   double region_cutoff = 1e-3;
   void Check() const;  // throws odvr::Error
 };
@@ -114,7 +118,7 @@ class ResidualTransform {
 // grids and decisions cannot drift apart.
 // Throws odvr::Error for an input too small for the transform (< 8×4) or not about 2:1.
 void CheckTransformInput(int width, int height);
-// Working grid of level s: base_width·2^s wide, capped at the input's width, the input's aspect.
+// Working grid of level s: base_width·2^s wide (at least 64), capped at the input's width, the input's aspect.
 std::pair<int, int> WorkingGrid(const ResidualTransformOptions& options, int level, int input_width, int input_height);
 // A level is kept only when it keeps an SRBF and lowers the residue's energy (RMS): eq. 4.17 is
 // a local least-squares estimate, so a level that does not is fitting nothing the frame has.
