@@ -13,42 +13,17 @@
 #include <string>
 #include <vector>
 
+#include "tests/app/run_odvr.h"
+
 namespace {
+
+using odvr::testing::CliRun;
+using odvr::testing::Lines;
+using odvr::testing::RunOdvr;
+using odvr::testing::ScratchDir;
 
 namespace fs = std::filesystem;
 const fs::path kStreet = fs::path(ODVR_SHARED_DIR) / "data/street_a";
-
-struct CliRun {
-  int exit_code;
-  std::string out, err;
-};
-
-CliRun RunOdvr(const std::string& args) {
-  const std::string err_file = ::testing::TempDir() + "odvr_bench_stitch_err_" + std::to_string(::getpid()) + ".txt";
-  const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
-  CliRun run{-1, "", ""};
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) run.out.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  if (FILE* f = std::fopen(err_file.c_str(), "r")) {
-    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
-    std::fclose(f);
-  }
-  return run;
-}
-
-struct TempDir {
-  TempDir() {
-    dir = fs::temp_directory_path() / ("odvr_bench_stitch_" + std::to_string(::getpid()) + "_" +
-                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir);
-  }
-  ~TempDir() { fs::remove_all(dir); }
-  fs::path dir;
-};
 
 std::string ReadText(const fs::path& path) {
   std::ifstream in(path);
@@ -84,7 +59,7 @@ std::map<std::string, TsvRow> ReadTsv(const fs::path& path) {
 
 TEST(BenchStitch, ScoresBothPipelinesAndComputesTheTargetsFromTheRows) {
   if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
-  const TempDir t;
+  const ScratchDir t{"odvr_bench_stitch"};
   const CliRun r = RunOdvr("bench stitch --frames 0 --width 256 --height 128 --repeats 1 --out " + t.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto rows = ReadTsv(t.dir / "stitch.tsv");
@@ -116,7 +91,7 @@ TEST(BenchStitch, ScoresBothPipelinesAndComputesTheTargetsFromTheRows) {
 }
 
 TEST(BenchStitch, BadInputsEndInOneLine) {
-  const TempDir t;
+  const ScratchDir t{"odvr_bench_stitch"};
   const CliRun missing = RunOdvr("bench stitch --dataset " + t.dir.string() + " --out " + t.dir.string());
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.err.find("has no rig.json"), std::string::npos) << missing.err;

@@ -8,32 +8,13 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/app/run_odvr.h"
+
 namespace {
 
-struct CliRun {
-  int exit_code;
-  std::string out;  // stdout
-  std::string err;  // stderr
-};
-
-CliRun RunOdvr(const std::string& args) {
-  const std::string err_file = ::testing::TempDir() + "odvr_cli_err.txt";
-  const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
-  CliRun run{-1, "", ""};
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) run.out.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  if (FILE* f = std::fopen(err_file.c_str(), "r")) {
-    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
-    std::fclose(f);
-  }
-  return run;
-}
-
-int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+using odvr::testing::CliRun;
+using odvr::testing::Lines;
+using odvr::testing::RunOdvr;
 
 TEST(Cli, UnknownCommandExitsTwoWithOneLine) {
   const CliRun r = RunOdvr("frobnicate");

@@ -13,33 +13,13 @@
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/sg_lighting.h"
+#include "tests/app/run_odvr.h"
 
 namespace {
 
-struct CliRun {
-  int exit_code;
-  std::string out;
-  std::string err;
-};
-
-CliRun RunOdvr(const std::string& args) {
-  const std::string err_file = ::testing::TempDir() + "odvr_light_err.txt";
-  const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
-  CliRun run{-1, "", ""};
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) run.out.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  if (FILE* f = std::fopen(err_file.c_str(), "r")) {
-    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
-    std::fclose(f);
-  }
-  return run;
-}
-
-int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+using odvr::testing::CliRun;
+using odvr::testing::Lines;
+using odvr::testing::RunOdvr;
 
 const std::string kSky = std::string(ODVR_SHARED_DIR) + "/data/env/sky.exr";
 

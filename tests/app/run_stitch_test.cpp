@@ -11,46 +11,21 @@
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
+#include "tests/app/run_odvr.h"
+
 namespace {
+
+using odvr::testing::CliRun;
+using odvr::testing::Lines;
+using odvr::testing::RunOdvr;
+using odvr::testing::ScratchDir;
 
 namespace fs = std::filesystem;
 const fs::path kStreet = fs::path(ODVR_SHARED_DIR) / "data/street_a";
 
-struct CliRun {
-  int exit_code;
-  std::string out, err;
-};
-
-CliRun RunOdvr(const std::string& args) {
-  const std::string err_file = ::testing::TempDir() + "odvr_stitch_err_" + std::to_string(::getpid()) + ".txt";
-  const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
-  CliRun run{-1, "", ""};
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  std::size_t n;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) run.out.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  if (FILE* f = std::fopen(err_file.c_str(), "r")) {
-    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
-    std::fclose(f);
-  }
-  return run;
-}
-
-struct TempDir {
-  TempDir() {
-    dir = fs::temp_directory_path() / ("odvr_run_stitch_" + std::to_string(::getpid()) + "_" +
-                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir);
-  }
-  ~TempDir() { fs::remove_all(dir); }
-  fs::path dir;
-};
-
 TEST(RunStitch, StitchesTwoStreetFramesToPngOnTheCpu) {
   if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
-  const TempDir t;
+  const ScratchDir t{"odvr_run_stitch"};
   const fs::path out = t.dir / "pano";
   const CliRun r = RunOdvr("stitch --rig " + (kStreet / "rig.json").string() + " --in " + (kStreet / "rig").string() +
                            " --out " + out.string() + " --format png --size 512x256 --device cpu --frames 2 --json");
@@ -75,7 +50,7 @@ TEST(RunStitch, StitchesTwoStreetFramesToPngOnTheCpu) {
 
 TEST(RunStitch, WritesAnMp4FromTheRigFilesOwnImageFolders) {
   if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
-  const TempDir t;
+  const ScratchDir t{"odvr_run_stitch"};
   const fs::path out = t.dir / "street.mp4";
   // No --in: the rig file's image_dir entries name the camera folders.
   const CliRun r = RunOdvr("stitch --rig " + (kStreet / "rig.json").string() + " --out " + out.string() +
@@ -86,7 +61,7 @@ TEST(RunStitch, WritesAnMp4FromTheRigFilesOwnImageFolders) {
 }
 
 TEST(RunStitch, BadInputsEndInOneLine) {
-  const TempDir t;
+  const ScratchDir t{"odvr_run_stitch"};
   const CliRun no_rig = RunOdvr("stitch --rig " + (t.dir / "missing.json").string() + " --in . --out " +
                                 (t.dir / "o").string() + " --device cpu");
   EXPECT_EQ(no_rig.exit_code, 1);

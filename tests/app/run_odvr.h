@@ -1,0 +1,52 @@
+#pragma once
+// Runs the real odvr binary as a user would, for the app tests: exit code, stdout and stderr.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+namespace odvr::testing {
+
+struct CliRun {
+  int exit_code;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+inline CliRun RunOdvr(const std::string& args) {
+  // Per process: ctest runs the app tests in parallel.
+  const std::string err_file = ::testing::TempDir() + "odvr_err_" + std::to_string(::getpid()) + ".txt";
+  const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
+  CliRun run{-1, "", ""};
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  std::array<char, 4096> buf{};
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) run.out.append(buf.data(), n);
+  const int status = ::pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (FILE* f = std::fopen(err_file.c_str(), "r")) {
+    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
+    std::fclose(f);
+  }
+  return run;
+}
+
+inline int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+// A fresh folder for one test, removed after it.
+struct ScratchDir {
+  explicit ScratchDir(const std::string& prefix) {
+    dir = std::filesystem::temp_directory_path() / (prefix + "_" + std::to_string(::getpid()) + "_" +
+                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir);
+  }
+  ~ScratchDir() { std::filesystem::remove_all(dir); }
+  std::filesystem::path dir;
+};
+
+}  // namespace odvr::testing
