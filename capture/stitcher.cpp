@@ -270,11 +270,17 @@ void FillUnseen(sphere::EquirectImage* image, const std::vector<std::uint8_t>& v
     auto rows = [&](long begin, long end) {
       for (long y = begin; y < end; ++y)
         for (int x = 0; x < own.width; ++x) {
-          float up[3];
-          Upsample(filled, x, static_cast<int>(y), up);
           const float* o = own.at(x, static_cast<int>(y));
           float* dst = next.at(x, static_cast<int>(y));
-          for (int k = 0; k < 3; ++k) dst[k] = o[k] + (1 - o[3]) * up[k];
+          // A fully covered pixel keeps its own colour ((1 − 1)·up adds nothing), so the
+          // upsample is skipped there; most of the finest level is covered.
+          if (o[3] >= 1) {
+            for (int k = 0; k < 3; ++k) dst[k] = o[k];
+          } else {
+            float up[3];
+            Upsample(filled, x, static_cast<int>(y), up);
+            for (int k = 0; k < 3; ++k) dst[k] = o[k] + (1 - o[3]) * up[k];
+          }
           dst[3] = 1;
         }
     };
