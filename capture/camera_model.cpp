@@ -62,34 +62,27 @@ std::string ToString(CameraModelType type) {
 
 CameraModel CameraModel::Pinhole(int width, int height, double fx, double fy, double cx, double cy,
                                  const std::array<double, 5>& distortion) {
-  CheckSize(width, height);
-  CheckFocal(fx, fy);
-  CameraModel m;
-  m.type_ = CameraModelType::kPinhole;
-  m.width_ = width;
-  m.height_ = height;
-  m.fx_ = fx;
-  m.fy_ = fy;
-  m.cx_ = cx;
-  m.cy_ = cy;
-  m.distortion_.assign(distortion.begin(), distortion.end());
-  m.ComputeMaxTheta();
-  return m;
+  return Make(CameraModelType::kPinhole, width, height, fx, fy, cx, cy, {distortion.begin(), distortion.end()});
 }
 
 CameraModel CameraModel::Fisheye(int width, int height, double fx, double fy, double cx, double cy,
                                  const std::array<double, 4>& k) {
+  return Make(CameraModelType::kFisheye, width, height, fx, fy, cx, cy, {k.begin(), k.end()});
+}
+
+CameraModel CameraModel::Make(CameraModelType type, int width, int height, double fx, double fy, double cx, double cy,
+                              std::vector<double> distortion) {
   CheckSize(width, height);
   CheckFocal(fx, fy);
   CameraModel m;
-  m.type_ = CameraModelType::kFisheye;
+  m.type_ = type;
   m.width_ = width;
   m.height_ = height;
   m.fx_ = fx;
   m.fy_ = fy;
   m.cx_ = cx;
   m.cy_ = cy;
-  m.distortion_.assign(k.begin(), k.end());
+  m.distortion_ = std::move(distortion);
   m.ComputeMaxTheta();
   return m;
 }

@@ -66,6 +66,8 @@ class CameraModel {
 
  private:
   CameraModel() = default;
+  static CameraModel Make(CameraModelType type, int width, int height, double fx, double fy, double cx, double cy,
+                          std::vector<double> distortion);
   void ComputeMaxTheta();
   CameraModelType type_ = CameraModelType::kPinhole;
   int width_ = 0, height_ = 0;

@@ -193,4 +193,13 @@ ContextInfo QueryContextInfo(const std::string& platform) {
   return info;
 }
 
+void RequireCurrentGl45(const std::string& who) {
+  GLint major = 0, minor = 0;
+  glGetIntegerv(GL_MAJOR_VERSION, &major);
+  glGetIntegerv(GL_MINOR_VERSION, &minor);
+  if (major * 10 + minor < 45)
+    throw Error(who, "needs a current OpenGL 4.5 context, the current one is " + std::to_string(major) + "." +
+                         std::to_string(minor));
+}
+
 }  // namespace odvr::gl

@@ -28,6 +28,10 @@ struct ContextInfo {
 // Reads ContextInfo from the current context.
 ContextInfo QueryContextInfo(const std::string& platform);
 
+// Throws odvr::Error naming `who` unless a context of at least OpenGL 4.5 is current: the GPU
+// stages compile their shaders in their constructors.
+void RequireCurrentGl45(const std::string& who);
+
 // A 4.5 core context with no window. Prefers a hardware EGL device (NVIDIA's EGL device
 // platform) and falls back to Mesa's surfaceless platform (llvmpipe on machines without a GPU).
 // Set ODVR_EGL_PLATFORM=surfaceless|device to force one. Throws odvr::Error when neither works.

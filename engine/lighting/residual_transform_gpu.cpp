@@ -10,6 +10,7 @@
 #include <string>
 
 #include "engine/core/error.h"
+#include "engine/gl/context.h"
 #include "engine/gl/shader_library.h"
 #include "engine/sphere/equirect.h"
 
@@ -86,12 +87,7 @@ struct ResidualTransformGpu::Tables {
 ResidualTransformGpu::ResidualTransformGpu(ResidualTransformOptions options)
     : options_(options), pool_(std::make_unique<ThreadPool>(options.threads)) {
   options_.Check();
-  GLint major = 0, minor = 0;
-  glGetIntegerv(GL_MAJOR_VERSION, &major);
-  glGetIntegerv(GL_MINOR_VERSION, &minor);
-  if (major * 10 + minor < 45)
-    throw Error("lighting gpu", "needs a current OpenGL 4.5 context, the current one is " + std::to_string(major) +
-                                    "." + std::to_string(minor));
+  gl::RequireCurrentGl45("lighting gpu");
   // Work-group sizes of the reduction passes. A GPU wants at least a warp or wavefront per
   // group. Mesa's llvmpipe runs a group's invocations as SIMD loops on one CPU thread, where
   // each barrier() of the tree costs a switch per SIMD chunk: there, groups of 16 (projection)

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "engine/core/error.h"
+#include "engine/gl/context.h"
 #include "engine/gl/shader_library.h"
 
 namespace odvr::visibility {
@@ -27,12 +28,7 @@ void Reserve(gl::Buffer& buffer, std::size_t bytes) {
 
 VoxelizerGpu::VoxelizerGpu(const VoxelGridSpec& spec) : spec_(spec) {
   spec_.Check();
-  GLint major = 0, minor = 0;
-  glGetIntegerv(GL_MAJOR_VERSION, &major);
-  glGetIntegerv(GL_MINOR_VERSION, &minor);
-  if (major * 10 + minor < 45)
-    throw Error("voxelizer gpu", "needs a current OpenGL 4.5 context, the current one is " + std::to_string(major) +
-                                     "." + std::to_string(minor));
+  gl::RequireCurrentGl45("voxelizer gpu");
   voxelize_ = gl::ShaderLibrary::Compute("voxelize.comp");
   mip_ = gl::ShaderLibrary::Compute("voxel_mip.comp");
   trace_ = gl::ShaderLibrary::Compute("cone_trace.comp");
