@@ -1,0 +1,89 @@
+// `odvr reconstruct` run as a user would on street_a: outputs, their schema and the trajectory's
+// error against the ground truth; bad input ends in one clear line and a non-zero exit.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "tests/app/run_odvr.h"
+
+namespace {
+
+using odvr::testing::CliRun;
+using odvr::testing::RunOdvr;
+using odvr::testing::ScratchDir;
+
+namespace fs = std::filesystem;
+const fs::path kStreet = fs::path(ODVR_SHARED_DIR) / "data/street_a";
+
+int DataLines(const fs::path& p) {
+  std::ifstream in(p);
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) n += !line.empty() && line[0] != '#';
+  return n;
+}
+
+TEST(RunReconstruct, StreetSixFramesWritesEveryOutputAndMeetsTheTargets) {
+  if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent";
+  const ScratchDir t{"odvr_run_reconstruct"};
+  const fs::path out = t.dir / "rec";
+  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --frames " +
+                           (kStreet / "rig").string() + " --first 2 --count 6 --out " + out.string() +
+                           " --ground-truth " + (kStreet / "trajectory_gt.json").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(r.err.empty()) << "--json must keep stderr quiet: " << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["frames"].get<int>(), 6);
+  EXPECT_EQ(j["first_index"].get<int>(), 2);
+  EXPECT_LT(j["reprojection_rmse_px"].get<double>(), 1.0);
+  const auto& e = j["evaluation"];
+  std::cout << e.dump() << "\n";
+  EXPECT_EQ(e["matched_frames"].get<int>(), 6);
+  EXPECT_LT(e["ate_percent_of_path"].get<double>(), 1.0);
+  EXPECT_LT(e["scale_error_percent"].get<double>(), 3.0);
+  ASSERT_GE(j["stages"].size(), 5u);
+  for (const auto& s : j["stages"]) EXPECT_GE(s["seconds"].get<double>(), 0) << s.dump();
+
+  for (const char* f : {"trajectory.json", "trajectory.tum", "cameras.txt", "images.txt", "points3D.txt",
+                        "road_plane.json", "summary.json"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  std::ifstream tj(out / "trajectory.json");
+  const auto traj = nlohmann::json::parse(tj);
+  ASSERT_EQ(traj["frames"].size(), 6u);
+  EXPECT_EQ(traj["frames"][0]["index"].get<int>(), 2);
+  EXPECT_NEAR(traj["frames"][0]["timestamp"].get<double>(), 0.08, 1e-9);
+  EXPECT_EQ(traj["frames"][0]["world_from_rig"].size(), 4u);
+  // The world's road is z = 0, so the rig stands at its height; Y-up has it in y.
+  EXPECT_NEAR(traj["frames"][0]["world_from_rig"][2][3].get<double>(), 2.0647, 0.05);
+  EXPECT_NEAR(traj["frames"][0]["world_yup_from_rig"][1][3].get<double>(), 2.0647, 0.05);
+  EXPECT_EQ(DataLines(out / "trajectory.tum"), 6);
+  EXPECT_EQ(DataLines(out / "cameras.txt"), 6);
+  EXPECT_EQ(DataLines(out / "images.txt"), 2 * 36);
+  EXPECT_GT(DataLines(out / "points3D.txt"), 500);
+  std::ifstream cams(out / "cameras.txt");
+  std::stringstream text;
+  text << cams.rdbuf();
+  EXPECT_NE(text.str().find("1 OPENCV_FISHEYE 480 640 229.18"), std::string::npos) << text.str();
+  std::ifstream sj(out / "summary.json");
+  EXPECT_TRUE(nlohmann::json::parse(sj).contains("evaluation"));
+}
+
+TEST(RunReconstruct, TooFewFramesIsAUsageError) {
+  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --count 2");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("at least 3 frames"), std::string::npos) << r.err;
+}
+
+TEST(RunReconstruct, CameraCountMismatchNamesBothSides) {
+  if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent";
+  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --frames " +
+                           (kStreet / "rig/cam0").string() + " --count 3");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("delivers 1 cameras but the rig file"), std::string::npos) << r.err;
+}
+
+}  // namespace

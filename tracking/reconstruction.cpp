@@ -1,0 +1,785 @@
+#include "tracking/reconstruction.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <numeric>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <set>
+#include <unordered_map>
+
+#include "engine/core/error.h"
+#include "tracking/ransac.h"
+#include "tracking/triangulation.h"
+
+namespace odvr::tracking {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+
+std::string Fixed(double v, int digits = 2) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+// One KLT tracker run of one camera: a camera that misses a frame starts a new segment, since LK
+// cannot bridge a hole in its own sequence.
+struct Segment {
+  int camera = 0;
+  int first_frame = 0;  // sequence frame of the tracker's frame 0
+  std::unique_ptr<KltTracker> tracker;
+  size_t colored = 0;  // tracks whose colour is sampled
+  std::vector<std::array<unsigned char, 3>> colors;
+};
+
+long TrackKey(int segment, int track) { return (static_cast<long>(segment) << 24) | track; }
+
+struct UnionFind {
+  std::unordered_map<long, long> parent;
+  long Find(long x) {
+    auto it = parent.find(x);
+    if (it == parent.end()) return x;
+    const long root = Find(it->second);
+    parent[x] = root;
+    return root;
+  }
+  bool Union(long a, long b) {
+    a = Find(a), b = Find(b);
+    if (a == b) return false;
+    parent[std::max(a, b)] = std::min(a, b);
+    return true;
+  }
+};
+
+struct Obs {
+  int frame = 0;
+  int camera = 0;
+  Eigen::Vector2d pixel;
+  Eigen::Vector3d bearing;
+  bool inlier = true;
+};
+
+struct MapPoint {
+  std::vector<Obs> obs;
+  Eigen::Vector3d x = Eigen::Vector3d::Zero();
+  bool triangulated = false;
+  std::array<unsigned char, 3> rgb{};
+};
+
+struct UsedFrame {
+  long index = 0;
+  double timestamp = 0;
+  int duplicate_of = -1;  // into the output frame list
+};
+
+CamFromWorld CamPose(const RigGeometry& rig, const Rigid3& world_from_rig, int camera) {
+  const Rigid3 cam_from_world = rig.rig_from_cam[camera].Inverse() * world_from_rig.Inverse();
+  CamFromWorld p;
+  p.rotation = cam_from_world.rotation;
+  p.translation = cam_from_world.translation;
+  return p;
+}
+
+double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+
+class Reconstructor {
+ public:
+  Reconstructor(const capture::Rig& rig, const ReconstructionOptions& options, const ReconstructionCallbacks& callbacks)
+      : options_(options), callbacks_(callbacks), geometry_(RigGeometry::FromRig(rig)) {
+    out_.rig = rig;
+    out_.rig_height_m = options.rig_height_m > 0 ? options.rig_height_m : rig.height_m;
+    out_.scale_source = options.rig_height_m > 0 ? "rig height given on the command line"
+                        : rig.height_m > 0       ? "rig_height_m of " + rig.path.string()
+                                                 : "";
+    double f = 0;
+    for (double v : geometry_.focal_px) f += v;
+    focal_ = f / static_cast<double>(geometry_.focal_px.size());
+  }
+
+  Reconstruction Run(capture::Source& source) {
+    if (geometry_.camera_count() == 0) throw Error(out_.rig.path.string(), "the rig has no cameras");
+    if (source.camera_count() != geometry_.camera_count())
+      throw Error("frames", "the source delivers " + std::to_string(source.camera_count()) +
+                                " cameras but the rig file " + out_.rig.path.string() + " describes " +
+                                std::to_string(geometry_.camera_count()));
+    Track(source);
+    BuildPoints();
+    Initialize();
+    RegisterAll();
+    Finish();
+    return std::move(out_);
+  }
+
+ private:
+  void Log(const std::string& line) const {
+    if (callbacks_.log) callbacks_.log(line);
+  }
+  void Progress(const std::string& stage, int done, int total) const {
+    if (callbacks_.progress) callbacks_.progress(stage, done, total);
+  }
+  void Stage(const std::string& name, Clock::time_point since, int inliers, const std::string& what) {
+    out_.stages.push_back({name, Seconds(since), inliers, what});
+    Log(name + ": " + std::to_string(inliers) + " " + what + " (" + Fixed(out_.stages.back().seconds) + " s)");
+  }
+
+  // --- tracking and cross-camera links -------------------------------------------------------
+
+  void Track(capture::Source& source) {
+    const auto t0 = Clock::now();
+    const int cameras = geometry_.camera_count();
+    std::vector<int> open(cameras, -1);  // current segment per camera
+    std::vector<cv::Mat> previous(cameras);
+    std::vector<bool> size_checked(cameras, false);
+    const long total = options_.max_frames > 0 ? options_.max_frames : source.frame_count();
+    long read = 0;
+    while (options_.max_frames == 0 || read < options_.max_frames) {
+      auto set = source.Next();
+      if (!set) break;
+      ++read;
+      for (const auto& e : source.TakeEvents()) out_.warnings.push_back(e.message);
+      long index = -1;
+      double timestamp = 0;
+      bool any = false;
+      for (const auto& f : set->frames)
+        if (!f.image.empty()) {
+          any = true;
+          index = f.index;
+          timestamp = f.timestamp_s;
+        }
+      if (!any) {
+        // No camera delivered: the rig frame does not exist; trackers carry on across the gap.
+        out_.dropped_frames.push_back(set->frames.empty() ? set->index : set->frames.front().index);
+        continue;
+      }
+      for (int c = 0; c < cameras; ++c) {
+        const cv::Mat& image = set->frames[c].image;
+        if (image.empty() || size_checked[c]) continue;
+        const auto& model = out_.rig.cameras[c].model;
+        if (image.cols != model.width() || image.rows != model.height())
+          throw Error("camera " + out_.rig.cameras[c].name,
+                      "images are " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                          " but the rig file " + out_.rig.path.string() + " says " + std::to_string(model.width()) +
+                          "x" + std::to_string(model.height()));
+        size_checked[c] = true;
+      }
+      // A duplicated frame (every delivered image equal to the previous one) adds no geometry and
+      // would look like a rig that stopped: it takes the previous frame's pose.
+      if (!used_.empty()) {
+        bool duplicate = true;
+        for (int c = 0; c < cameras && duplicate; ++c) {
+          const cv::Mat& image = set->frames[c].image;
+          if (image.empty()) continue;
+          duplicate = !previous[c].empty() && previous[c].size() == image.size() &&
+                      previous[c].type() == image.type() && cv::norm(previous[c], image, cv::NORM_INF) == 0;
+        }
+        if (duplicate) {
+          duplicates_.push_back({index, timestamp, static_cast<int>(used_.size()) - 1});
+          out_.warnings.push_back("frame " + std::to_string(index) + " repeats frame " +
+                                  std::to_string(used_.back().index) + ": it takes that frame's pose");
+          continue;
+        }
+      }
+      const int k = static_cast<int>(used_.size());
+      used_.push_back({index, timestamp, -1});
+      std::vector<CameraTrackPoints> views;
+      for (int c = 0; c < cameras; ++c) {
+        const cv::Mat& image = set->frames[c].image;
+        if (image.empty()) {
+          open[c] = -1;  // the next image starts a new segment
+          continue;
+        }
+        previous[c] = image;
+        if (open[c] < 0) {
+          Segment s;
+          s.camera = c;
+          s.first_frame = k;
+          s.tracker = std::make_unique<KltTracker>(out_.rig.cameras[c].model, options_.klt);
+          segments_.push_back(std::move(s));
+          open[c] = static_cast<int>(segments_.size()) - 1;
+        }
+        Segment& s = segments_[open[c]];
+        s.tracker->AddFrame(image);
+        const int local = s.tracker->frame_count() - 1;
+        const auto& tracks = s.tracker->tracks();
+        for (; s.colored < tracks.size(); ++s.colored) {
+          const Eigen::Vector2d& p = tracks[s.colored].observations.front().pixel;
+          const cv::Vec3b bgr =
+              image.at<cv::Vec3b>(static_cast<int>(std::lround(p.y())), static_cast<int>(std::lround(p.x())));
+          s.colors.push_back({bgr[2], bgr[1], bgr[0]});
+        }
+        CameraTrackPoints view;
+        view.camera = c;
+        cv::cvtColor(image, view.gray, cv::COLOR_BGR2GRAY);
+        for (size_t t = 0; t < tracks.size(); ++t) {
+          if (!tracks[t].active || tracks[t].observations.back().frame != local) continue;
+          view.ids.push_back(TrackKey(open[c], static_cast<int>(t)));
+          view.pixels.push_back(tracks[t].observations.back().pixel);
+          view.bearings.push_back(tracks[t].observations.back().bearing);
+        }
+        views.push_back(std::move(view));
+      }
+      for (const auto& m : MatchAcrossCameras(geometry_, views, options_.links, &link_stats_))
+        out_.cross_camera_links += links_.Union(m.id_a, m.id_b) ? 1 : 0;
+      Progress("tracking", static_cast<int>(read), static_cast<int>(total));
+    }
+    if (used_.size() < 3)
+      throw Error("frames", "only " + std::to_string(used_.size()) +
+                                " distinct frame set(s) with images (need at least 3 for structure from motion)");
+    out_.tracks_per_camera.assign(cameras, 0);
+    long observations = 0, tracks = 0;
+    for (const auto& s : segments_) {
+      out_.tracks_per_camera[s.camera] += static_cast<int>(s.tracker->tracks().size());
+      for (const auto& t : s.tracker->tracks()) observations += t.length();
+      tracks += static_cast<long>(s.tracker->tracks().size());
+    }
+    out_.mean_track_length = tracks > 0 ? static_cast<double>(observations) / static_cast<double>(tracks) : 0.0;
+    for (int c = 0; c < cameras; ++c)
+      if (out_.tracks_per_camera[c] == 0)
+        out_.warnings.push_back("camera " + out_.rig.cameras[c].name +
+                                " produced no tracks (black or textureless images): reconstructing without it");
+    Stage("tracking", t0, static_cast<int>(tracks),
+          "tracks over " + std::to_string(used_.size()) + " frames, mean length " + Fixed(out_.mean_track_length) +
+              ", " + std::to_string(out_.cross_camera_links) + " cross-camera links (" +
+              std::to_string(link_stats_.ratio_passed) + " ratio, " + std::to_string(link_stats_.cross_checked) +
+              " cross-checked, " + std::to_string(link_stats_.epipolar_passed) + " epipolar)");
+  }
+
+  // Linked tracks become points; a point with two observations in one camera and frame (a wrong
+  // link joined two tracks) loses both of them.
+  void BuildPoints() {
+    std::map<long, int> point_of_root;
+    for (int s = 0; s < static_cast<int>(segments_.size()); ++s) {
+      const Segment& seg = segments_[s];
+      const auto& tracks = seg.tracker->tracks();
+      for (int t = 0; t < static_cast<int>(tracks.size()); ++t) {
+        const long root = links_.Find(TrackKey(s, t));
+        auto [it, inserted] = point_of_root.emplace(root, static_cast<int>(points_.size()));
+        if (inserted) {
+          points_.emplace_back();
+          points_.back().rgb = seg.colors[t];
+        }
+        MapPoint& p = points_[it->second];
+        for (const auto& o : tracks[t].observations)
+          p.obs.push_back({seg.first_frame + o.frame, seg.camera, o.pixel, o.bearing, true});
+      }
+    }
+    int conflicts = 0;
+    std::vector<MapPoint> kept;
+    for (auto& p : points_) {
+      std::map<std::pair<int, int>, int> count;
+      for (const auto& o : p.obs) ++count[{o.frame, o.camera}];
+      std::vector<Obs> clean;
+      for (const auto& o : p.obs)
+        if (count[{o.frame, o.camera}] == 1) clean.push_back(o);
+      conflicts += static_cast<int>(p.obs.size() - clean.size());
+      std::set<int> frames;
+      for (const auto& o : clean) frames.insert(o.frame);
+      if (frames.size() < 2) continue;
+      std::sort(clean.begin(), clean.end(), [](const Obs& a, const Obs& b) {
+        return a.frame != b.frame ? a.frame < b.frame : a.camera < b.camera;
+      });
+      p.obs = std::move(clean);
+      kept.push_back(std::move(p));
+    }
+    points_ = std::move(kept);
+    segments_.clear();  // the trackers' images and tracks are no longer needed
+    if (conflicts > 0)
+      Log("points: dropped " + std::to_string(conflicts) + " observations of links that contradict each other");
+  }
+
+  // --- initial pair ----------------------------------------------------------------------------
+
+  void Initialize() {
+    const auto t0 = Clock::now();
+    const int frames = static_cast<int>(used_.size());
+    world_from_rig_.assign(frames, Rigid3());
+    registered_.assign(frames, 0);
+    double best_parallax = 0;
+    int best_frame = -1;
+    std::string why = "no later frame shares enough tracked points with frame 0";
+    for (int j = 1; j < frames && j <= options_.max_init_gap; ++j) {
+      std::vector<RigBearingPair> pairs;
+      for (const auto& p : points_) {
+        const Obs* a = nullptr;
+        const Obs* b = nullptr;
+        for (const auto& o : p.obs) {
+          if (o.frame == 0 && !a) a = &o;
+          if (o.frame == j && (!b || (a && o.camera == a->camera))) b = &o;
+        }
+        if (a && b) pairs.push_back({a->bearing, b->bearing, a->camera, b->camera});
+      }
+      if (static_cast<int>(pairs.size()) < options_.min_init_inliers) {
+        why = "frames 0 and " + std::to_string(j) + " share only " + std::to_string(pairs.size()) +
+              " tracked points (need " + std::to_string(options_.min_init_inliers) + ")";
+        break;  // later frames share even fewer
+      }
+      // Parallax with the rotation taken out, measured before any translation is estimated: the
+      // best rotation between the two frames' rig-frame rays (Wahba's problem, SVD) and the median
+      // angle left over. A static rig or a pure rotation leaves only noise, and the 17-point
+      // solver's translation would then be noise too.
+      const double rotation_free = RotationFreeParallaxDeg(pairs);
+      best_parallax = std::max(best_parallax, rotation_free);
+      if (rotation_free < options_.min_init_parallax_deg) {
+        Log("initialization: frame 0 -> " + std::to_string(j) + ": median parallax after rotation " +
+            Fixed(rotation_free, 3) + " deg, too little");
+        continue;
+      }
+      RansacOptions ro;
+      ro.max_residual = options_.ransac_threshold_px;
+      ro.max_iterations = 400;
+      ro.random_seed = static_cast<std::uint64_t>(j);
+      RigRelativePoseEstimator estimator;
+      estimator.rig = &geometry_;
+      estimator.focal_px = focal_;
+      const auto result = Ransac<RigRelativePoseEstimator>(ro, estimator).Estimate(pairs);
+      if (!result.success || result.num_inliers < options_.min_init_inliers) {
+        why = "frames 0 and " + std::to_string(j) + ": relative pose " + result.BriefReport();
+        continue;
+      }
+      std::vector<double> parallax;
+      for (size_t i = 0; i < pairs.size(); ++i) {
+        if (!result.inlier_mask[i]) continue;
+        const Eigen::Vector3d d1 = geometry_.rig_from_cam[pairs[i].camera1].rotation * pairs[i].bearing1;
+        const Eigen::Vector3d d2 =
+            result.model.rotation * geometry_.rig_from_cam[pairs[i].camera2].rotation * pairs[i].bearing2;
+        parallax.push_back(AngleBetween(d1, d2) * 180 / M_PI);
+      }
+      std::nth_element(parallax.begin(), parallax.begin() + parallax.size() / 2, parallax.end());
+      const double median = parallax[parallax.size() / 2];
+      Log("initialization: frame 0 -> " + std::to_string(j) + ": " + result.BriefReport() + ", median parallax " +
+          Fixed(median, 3) + " deg");
+      if (median < options_.min_init_parallax_deg) continue;
+      Rigid3 pose = result.model;  // rig0_from_rigj
+      const double length = pose.translation.norm();
+      if (!(length > 1e-9) || !pose.AllFinite()) continue;
+      // The 17-point solver's translation length rests on the 8 cm camera offsets alone; keep it
+      // only as a starting unit, the road fixes the scale below.
+      if (length < 1e-3 || length > 1e3) pose.translation /= length;
+      world_from_rig_[j] = pose;
+      registered_[0] = registered_[j] = 1;
+      init_inliers_ = result.num_inliers;
+      best_frame = j;
+      break;
+    }
+    if (best_frame < 0) {
+      if (best_parallax > 0 && best_parallax < options_.min_init_parallax_deg)
+        throw Error("reconstruct", "the rig does not move enough to triangulate: the median parallax between frame " +
+                                       std::to_string(used_[0].index) + " and the next " +
+                                       std::to_string(std::min(frames - 1, options_.max_init_gap)) +
+                                       " frames is at most " + Fixed(best_parallax, 3) + " deg (need " +
+                                       Fixed(options_.min_init_parallax_deg) +
+                                       "): a static camera or a pure rotation has no depth");
+      throw Error("reconstruct", "no initial frame pair: " + why);
+    }
+    TriangulateNew(options_.min_triangulation_angle_deg);
+    BundleAdjust(30);
+    RemoveOutliers();
+    ApplyRoadScale("initialization");
+    TriangulateNew(options_.min_triangulation_angle_deg);
+    Stage("initialization", t0, init_inliers_,
+          "relative-pose inliers between frames " + std::to_string(used_[0].index) + " and " +
+              std::to_string(used_[best_frame].index) + ", " + std::to_string(CountTriangulated()) +
+              " points triangulated");
+  }
+
+  double RotationFreeParallaxDeg(const std::vector<RigBearingPair>& pairs) const {
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    std::vector<Eigen::Vector3d> d1, d2;
+    for (const auto& p : pairs) {
+      d1.push_back(geometry_.rig_from_cam[p.camera1].rotation * p.bearing1);
+      d2.push_back(geometry_.rig_from_cam[p.camera2].rotation * p.bearing2);
+      cov += d1.back() * d2.back().transpose();
+    }
+    Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d fix = Eigen::Matrix3d::Identity();
+    if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0) fix(2, 2) = -1;
+    const Eigen::Matrix3d r = svd.matrixU() * fix * svd.matrixV().transpose();  // d1 ~ r d2
+    std::vector<double> angles;
+    for (size_t i = 0; i < d1.size(); ++i) angles.push_back(AngleBetween(d1[i], r * d2[i]) * 180 / M_PI);
+    std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
+    return angles[angles.size() / 2];
+  }
+
+  // --- registration ----------------------------------------------------------------------------
+
+  void RegisterAll() {
+    const auto t0 = Clock::now();
+    const int frames = static_cast<int>(used_.size());
+    std::vector<int> order;
+    int init = 0;
+    for (int f = 1; f < frames; ++f)
+      if (registered_[f]) init = f;
+    for (int f = init - 1; f >= 1; --f) order.push_back(f);
+    for (int f = init + 1; f < frames; ++f) order.push_back(f);
+    int since_bundle = 0, done = 2, inliers = 0;
+    for (int f : order) {
+      inliers += Register(f);
+      TriangulateNew(options_.min_triangulation_angle_deg);
+      ++done;
+      Progress("registration", done, frames);
+      if (++since_bundle >= options_.bundle_every) {
+        BundleAdjust(20);
+        RemoveOutliers();
+        if (!metric_) ApplyRoadScale("registration");
+        since_bundle = 0;
+      }
+    }
+    Stage("registration", t0, inliers,
+          "2D-3D inliers over " + std::to_string(order.size()) + " registered frames, " +
+              std::to_string(CountTriangulated()) + " points");
+  }
+
+  int Register(int f) {
+    std::vector<RigBearingPoint> data;
+    std::vector<std::pair<int, int>> where;  // (point, observation)
+    for (int i = 0; i < static_cast<int>(points_.size()); ++i) {
+      const MapPoint& p = points_[i];
+      if (!p.triangulated) continue;
+      for (int k = 0; k < static_cast<int>(p.obs.size()); ++k)
+        if (p.obs[k].frame == f) {
+          data.push_back({p.obs[k].bearing, p.obs[k].camera, p.x});
+          where.emplace_back(i, k);
+        }
+    }
+    const std::string frame_name = "frame " + std::to_string(used_[f].index);
+    if (static_cast<int>(data.size()) < options_.min_pose_inliers)
+      throw Error(frame_name, "cannot be registered: only " + std::to_string(data.size()) +
+                                  " tracked points with a 3D position are visible (need " +
+                                  std::to_string(options_.min_pose_inliers) +
+                                  "); the tracks broke off (a textureless stretch, a cut or black images?)");
+    RansacOptions ro;
+    ro.max_residual = options_.ransac_threshold_px;
+    ro.max_iterations = 1000;
+    ro.random_seed = static_cast<std::uint64_t>(f);
+    RigAbsolutePoseEstimator estimator;
+    estimator.rig = &geometry_;
+    estimator.focal_px = focal_;
+    const auto result = Ransac<RigAbsolutePoseEstimator>(ro, estimator).Estimate(data);
+    if (!result.success || result.num_inliers < options_.min_pose_inliers)
+      throw Error(frame_name, "cannot be registered: " + std::to_string(result.num_inliers) + " of " +
+                                  std::to_string(data.size()) + " 2D-3D matches agree on a pose (need " +
+                                  std::to_string(options_.min_pose_inliers) + ")");
+    std::vector<RigBearingPoint> inliers;
+    for (size_t i = 0; i < data.size(); ++i)
+      if (result.inlier_mask[i]) inliers.push_back(data[i]);
+    Rigid3 pose = RefineAbsolutePose(geometry_, inliers, result.model);
+    if (!pose.AllFinite()) throw Error(frame_name, "the pose estimate is not finite");
+    world_from_rig_[f] = pose;
+    registered_[f] = 1;
+    std::vector<double> residuals;
+    estimator.Residuals(data, pose, &residuals);
+    int agreeing = 0;
+    for (size_t i = 0; i < data.size(); ++i) {
+      const bool ok = residuals[i] <= options_.ransac_threshold_px;
+      points_[where[i].first].obs[where[i].second].inlier = ok;
+      agreeing += ok;
+    }
+    return agreeing;
+  }
+
+  // Points with no position yet and inlier observations in two or more registered frames.
+  void TriangulateNew(double min_angle_deg) {
+    for (auto& p : points_) {
+      if (p.triangulated) continue;
+      std::vector<Eigen::Vector3d> bearings;
+      std::vector<CamFromWorld> poses;
+      std::set<int> frames;
+      for (const auto& o : p.obs) {
+        if (!registered_[o.frame] || !o.inlier) continue;
+        bearings.push_back(o.bearing);
+        poses.push_back(CamPose(geometry_, world_from_rig_[o.frame], o.camera));
+        frames.insert(o.frame);
+      }
+      if (frames.size() < 2) continue;
+      TriangulatedPoint t;
+      if (!TriangulateDlt(bearings, poses, &t)) continue;
+      if (!t.in_front || t.parallax_deg < min_angle_deg ||
+          t.max_angular_error_rad * focal_ > options_.ransac_threshold_px)
+        continue;
+      p.x = t.point;
+      p.triangulated = true;
+    }
+  }
+
+  int CountTriangulated() const {
+    int n = 0;
+    for (const auto& p : points_) n += p.triangulated;
+    return n;
+  }
+
+  // --- bundle adjustment, outliers, scale ---------------------------------------------------------
+
+  BundleAdjustmentReport BundleAdjust(int max_iterations) {
+    BundleAdjustmentProblem problem;
+    problem.rig = geometry_;
+    problem.world_from_rig = world_from_rig_;
+    problem.pose_constant.assign(world_from_rig_.size(), 0);
+    problem.pose_constant[0] = 1;
+    std::vector<int> index_of(points_.size(), -1);
+    for (int i = 0; i < static_cast<int>(points_.size()); ++i) {
+      const MapPoint& p = points_[i];
+      if (!p.triangulated) continue;
+      for (const auto& o : p.obs) {
+        if (!registered_[o.frame] || !o.inlier) continue;
+        if (index_of[i] < 0) {
+          index_of[i] = static_cast<int>(problem.points.size());
+          problem.points.push_back(p.x);
+        }
+        problem.observations.push_back({o.frame, o.camera, index_of[i], o.bearing});
+      }
+    }
+    if (metric_) {
+      // The registered frame farthest from frame 0 keeps its distance: the scale the road gave.
+      int far = 0;
+      double distance = 0;
+      for (size_t f = 1; f < world_from_rig_.size(); ++f) {
+        const double d = (world_from_rig_[f].translation - world_from_rig_[0].translation).norm();
+        if (registered_[f] && d > distance) distance = d, far = static_cast<int>(f);
+      }
+      if (far > 0 && distance > 0) {
+        problem.scale_prior.enabled = true;
+        problem.scale_prior.frame_a = 0;
+        problem.scale_prior.frame_b = far;
+        problem.scale_prior.distance = distance;
+        problem.scale_prior.sigma = 1e-4 * distance;
+      }
+    }
+    BundleAdjustmentOptions ba = options_.bundle;
+    ba.max_iterations = std::min(ba.max_iterations, max_iterations);
+    const BundleAdjustmentReport report = AdjustBundle(ba, &problem);
+    if (!report.converged) throw Error("bundle adjustment", "no usable solution (" + report.message + ")");
+    for (size_t f = 0; f < world_from_rig_.size(); ++f)
+      if (registered_[f]) {
+        if (!problem.world_from_rig[f].AllFinite())
+          throw Error("bundle adjustment", "the pose of frame " + std::to_string(used_[f].index) + " is not finite");
+        world_from_rig_[f] = problem.world_from_rig[f];
+      }
+    for (size_t i = 0; i < points_.size(); ++i)
+      if (index_of[i] >= 0) points_[i].x = problem.points[index_of[i]];
+    last_bundle_ = report;
+    Log("bundle adjustment: " + std::to_string(problem.observations.size()) + " observations, " +
+        std::to_string(problem.points.size()) + " points, RMSE " + Fixed(report.initial_rmse_px, 3) + " -> " +
+        Fixed(report.final_rmse_px, 3) + " px in " + std::to_string(report.iterations) + " iterations, " +
+        Fixed(report.seconds) + " s");
+    return report;
+  }
+
+  // Observations whose bearing error exceeds max_reprojection_px become outliers; a point left
+  // with fewer than two frames loses its position (it may come back by triangulation).
+  int RemoveOutliers() {
+    int removed = 0;
+    for (auto& p : points_) {
+      if (!p.triangulated) continue;
+      std::set<int> frames;
+      for (auto& o : p.obs) {
+        if (!registered_[o.frame] || !o.inlier) continue;
+        const Eigen::Vector3d in_cam = CamPose(geometry_, world_from_rig_[o.frame], o.camera) * p.x;
+        const double err = in_cam.dot(o.bearing) > 0 ? AngleBetween(in_cam, o.bearing) * geometry_.focal_px[o.camera]
+                                                     : std::numeric_limits<double>::infinity();
+        if (!(err <= options_.max_reprojection_px)) {
+          o.inlier = false;
+          ++removed;
+        } else {
+          frames.insert(o.frame);
+        }
+      }
+      if (frames.size() < 2 || !p.x.allFinite()) p.triangulated = false;
+    }
+    return removed;
+  }
+
+  std::vector<Rigid3> RegisteredPoses() const {
+    std::vector<Rigid3> poses;
+    for (size_t f = 0; f < world_from_rig_.size(); ++f)
+      if (registered_[f]) poses.push_back(world_from_rig_[f]);
+    return poses;
+  }
+
+  std::vector<Eigen::Vector3d> TriangulatedPoints() const {
+    std::vector<Eigen::Vector3d> xs;
+    for (const auto& p : points_)
+      if (p.triangulated) xs.push_back(p.x);
+    return xs;
+  }
+
+  // Scales the world about frame 0's rig (which stays fixed) so the rig stands at its height.
+  void ApplyRoadScale(const std::string& when) {
+    if (!(out_.rig_height_m > 0)) return;
+    const RoadPlane plane = FitRoadPlane(TriangulatedPoints(), RegisteredPoses(), out_.rig_height_m, options_.road);
+    Log("road plane (" + when + "): " + plane.message);
+    if (!plane.found) return;
+    const double s = plane.scale;
+    for (auto& pose : world_from_rig_) pose.translation *= s;
+    for (auto& p : points_) p.x *= s;
+    out_.scale_applied *= s;
+    metric_ = true;
+  }
+
+  // --- final stages ----------------------------------------------------------------------------
+
+  void Finish() {
+    auto t0 = Clock::now();
+    BundleAdjust(options_.bundle.max_iterations);
+    int removed = RemoveOutliers();
+    TriangulateNew(options_.min_triangulation_angle_deg);
+    BundleAdjust(options_.bundle.max_iterations);
+    removed += RemoveOutliers();
+    Stage("bundle adjustment", t0, CountInlierObservations(),
+          "inlier observations after " + std::to_string(removed) + " outliers removed, RMSE " +
+              Fixed(last_bundle_.final_rmse_px, 3) + " px (bearing)");
+
+    t0 = Clock::now();
+    if (!(out_.rig_height_m > 0)) {
+      out_.warnings.push_back("the rig file gives no rig_height_m: the reconstruction keeps an arbitrary scale");
+    } else {
+      ApplyRoadScale("after bundle adjustment");
+      if (!metric_) {
+        out_.warnings.push_back("no road plane found below the rig: the scale is not metric");
+      } else {
+        // The camera offsets are metric: the rescaled world is adjusted once more so they agree,
+        // holding the scale where the road put it.
+        BundleAdjust(options_.bundle.max_iterations);
+        RemoveOutliers();
+        ApplyRoadScale("final");
+      }
+    }
+    AlignToRoad();
+    Stage("metric scale", t0, out_.road.inliers, "road-plane inliers, " + out_.road.message);
+
+    t0 = Clock::now();
+    Export();
+    Stage("export", t0, static_cast<int>(out_.points.size()), "points");
+  }
+
+  int CountInlierObservations() const {
+    int n = 0;
+    for (const auto& p : points_)
+      if (p.triangulated)
+        for (const auto& o : p.obs) n += registered_[o.frame] && o.inlier;
+    return n;
+  }
+
+  // The output world: road plane z = 0, z up, origin below frame 0's rig, x along its heading.
+  void AlignToRoad() {
+    const RoadPlane plane = FitRoadPlane(TriangulatedPoints(), RegisteredPoses(), out_.rig_height_m, options_.road);
+    Eigen::Vector3d n = plane.found ? plane.normal : world_from_rig_[0].rotation.col(2);
+    const Eigen::Vector3d c0 = world_from_rig_[0].translation;
+    const double height = plane.found ? plane.Distance(c0) : 0.0;
+    Eigen::Vector3d x = world_from_rig_[0].rotation.col(0);
+    x = (x - x.dot(n) * n).normalized();
+    Rigid3 new_from_old;
+    new_from_old.rotation.row(0) = x.transpose();
+    new_from_old.rotation.row(1) = n.cross(x).transpose();
+    new_from_old.rotation.row(2) = n.transpose();
+    new_from_old.translation = -(new_from_old.rotation * (c0 - height * n));
+    for (auto& pose : world_from_rig_) pose = new_from_old * pose;
+    for (auto& p : points_) p.x = new_from_old * p.x;
+    out_.road = FitRoadPlane(TriangulatedPoints(), RegisteredPoses(), out_.rig_height_m, options_.road);
+  }
+
+  void Export() {
+    // Output frames: the used ones in order, with duplicates re-inserted after their original.
+    std::vector<int> out_of_used(used_.size());
+    size_t d = 0;
+    for (int k = 0; k < static_cast<int>(used_.size()); ++k) {
+      ReconstructedFrame f;
+      f.index = used_[k].index;
+      f.timestamp = used_[k].timestamp;
+      f.world_from_rig = world_from_rig_[k];
+      out_of_used[k] = static_cast<int>(out_.frames.size());
+      out_.frames.push_back(f);
+      for (; d < duplicates_.size() && duplicates_[d].duplicate_of == k; ++d) {
+        ReconstructedFrame dup = f;
+        dup.index = duplicates_[d].index;
+        dup.timestamp = duplicates_[d].timestamp;
+        dup.duplicate_of = out_of_used[k];
+        out_.frames.push_back(dup);
+      }
+    }
+    double sq = 0;
+    int n = 0;
+    for (const auto& p : points_) {
+      if (!p.triangulated) continue;
+      ReconstructedPoint rp;
+      rp.position = p.x;
+      rp.rgb = p.rgb;
+      double psq = 0;
+      for (const auto& o : p.obs) {
+        if (!registered_[o.frame] || !o.inlier) continue;
+        const auto& cam = out_.rig.cameras[o.camera];
+        const Eigen::Vector3d in_cam = CamPose(geometry_, world_from_rig_[o.frame], o.camera) * p.x;
+        Eigen::Vector2d pixel;
+        if (!cam.model.Project(in_cam, &pixel)) continue;
+        const double e2 = (pixel - o.pixel).squaredNorm();
+        psq += e2;
+        sq += e2;
+        ++n;
+        rp.observations.push_back({out_of_used[o.frame], o.camera, o.pixel, o.bearing});
+        ++out_.frames[out_of_used[o.frame]].inliers;
+      }
+      if (rp.observations.size() < 2) continue;
+      rp.error_px = std::sqrt(psq / static_cast<double>(rp.observations.size()));
+      out_.points.push_back(std::move(rp));
+    }
+    out_.observations = n;
+    out_.rmse_px = n > 0 ? std::sqrt(sq / n) : 0.0;
+    for (const auto& f : out_.frames)
+      if (!f.world_from_rig.AllFinite())
+        throw Error("reconstruct", "frame " + std::to_string(f.index) + " ended with a non-finite pose");
+  }
+
+  ReconstructionOptions options_;
+  ReconstructionCallbacks callbacks_;
+  RigGeometry geometry_;
+  double focal_ = 1;
+  Reconstruction out_;
+  std::vector<Segment> segments_;
+  UnionFind links_;
+  CrossCameraStats link_stats_;
+  std::vector<UsedFrame> used_;
+  std::vector<UsedFrame> duplicates_;  // duplicate_of: index into used_
+  std::vector<MapPoint> points_;
+  std::vector<Rigid3> world_from_rig_;
+  std::vector<char> registered_;
+  int init_inliers_ = 0;
+  BundleAdjustmentReport last_bundle_;
+  bool metric_ = false;  // a road scale was applied; bundle adjustments then hold the scale
+};
+
+}  // namespace
+
+void ReconstructionOptions::Check() const {
+  klt.Check();
+  links.Check();
+  bundle.Check();
+  road.Check();
+  if (!(rig_height_m >= 0)) throw Error("rig_height_m", "must be >= 0");
+  if (max_frames < 0) throw Error("max_frames", "must be >= 0");
+  if (!(ransac_threshold_px > 0)) throw Error("ransac_threshold_px", "must be > 0");
+  if (min_init_inliers < RigRelativePoseEstimator::kMinimalSample)
+    throw Error("min_init_inliers", "must be >= " + std::to_string(RigRelativePoseEstimator::kMinimalSample));
+  if (!(min_init_parallax_deg > 0)) throw Error("min_init_parallax_deg", "must be > 0");
+  if (max_init_gap < 1) throw Error("max_init_gap", "must be >= 1");
+  if (min_pose_inliers < 6) throw Error("min_pose_inliers", "must be >= 6");
+  if (!(min_triangulation_angle_deg > 0)) throw Error("min_triangulation_angle_deg", "must be > 0");
+  if (!(max_reprojection_px > 0)) throw Error("max_reprojection_px", "must be > 0");
+  if (bundle_every < 1) throw Error("bundle_every", "must be >= 1");
+}
+
+Reconstruction Reconstruct(const capture::Rig& rig, capture::Source& source, const ReconstructionOptions& options,
+                           const ReconstructionCallbacks& callbacks) {
+  options.Check();
+  return Reconstructor(rig, options, callbacks).Run(source);
+}
+
+}  // namespace odvr::tracking

@@ -1,0 +1,117 @@
+#pragma once
+// Offline structure from motion for the calibrated rig (seed §5.3.2, DESIGN.md §6): per-camera
+// KLT tracks, cross-camera SIFT links, an initial pair from the non-central relative pose,
+// frame-by-frame registration by the non-central absolute pose, DLT triangulation, Ceres bundle
+// adjustment with the extrinsics fixed, and metric scale from the road plane. The result sits in
+// a world whose z = 0 plane is the fitted road, z up, origin below the first rig pose and x along
+// its heading: the Z-up convention of the datasets (odvr's Y-up world is (x, z, -y) of it).
+#include <Eigen/Core>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "capture/rig.h"
+#include "capture/source.h"
+#include "tracking/bundle_adjustment.h"
+#include "tracking/cross_camera.h"
+#include "tracking/road_plane.h"
+#include "tracking/tracks.h"
+
+namespace odvr::tracking {
+
+struct ReconstructionOptions {
+  KltOptions klt;
+  CrossCameraOptions links;
+  BundleAdjustmentOptions bundle;
+  RoadPlaneOptions road;
+  double rig_height_m = 0;  // > 0 overrides the rig file's height
+  long max_frames = 0;      // frame sets read from the source (0: all)
+  // RANSAC thresholds of the relative and absolute pose (pixels at the camera's focal length).
+  double ransac_threshold_px = 2.0;
+  int min_init_inliers = 50;
+  // The initial pair is frame 0 and the first later frame (up to max_init_gap) whose inlier rays
+  // differ by this median angle after the rotation is taken out: below it depth is noise.
+  double min_init_parallax_deg = 1.0;
+  int max_init_gap = 10;
+  int min_pose_inliers = 20;  // a frame with fewer agreeing 2D-3D matches cannot be registered
+  double min_triangulation_angle_deg = 1.0;
+  double max_reprojection_px = 4.0;  // observations beyond it are outliers after bundle adjustment
+  int bundle_every = 8;              // intermediate bundle adjustments after this many new frames
+
+  // Throws odvr::Error naming the first bad parameter.
+  void Check() const;
+};
+
+struct PointObservation {
+  int frame = 0;  // index into Reconstruction::frames
+  int camera = 0;
+  Eigen::Vector2d pixel;
+  Eigen::Vector3d bearing;
+};
+
+struct ReconstructedPoint {
+  Eigen::Vector3d position;  // world (z up, metres)
+  std::array<unsigned char, 3> rgb{};
+  double error_px = 0;  // RMS reprojection error over its observations (camera model pixels)
+  std::vector<PointObservation> observations;
+};
+
+struct ReconstructedFrame {
+  long index = 0;  // frame number of the images
+  double timestamp = 0;
+  Rigid3 world_from_rig;
+  int duplicate_of = -1;  // >= 0: identical images to that frame, which carries the estimate
+  int inliers = 0;        // 2D-3D observations that agree with the pose after bundle adjustment
+};
+
+struct ReconstructionStage {
+  std::string name;
+  double seconds = 0;
+  int inliers = 0;  // what survived the stage (its own unit, named in `what`)
+  std::string what;
+};
+
+struct Reconstruction {
+  capture::Rig rig;
+  std::vector<ReconstructedFrame> frames;
+  std::vector<ReconstructedPoint> points;
+  RoadPlane road;            // measured in the final world (normal ~ +z, offset ~ 0)
+  double scale_applied = 1;  // metres per unit of the initial reconstruction
+  std::string scale_source;  // where the metric height came from
+  double rig_height_m = 0;
+  std::vector<ReconstructionStage> stages;
+  std::vector<int> tracks_per_camera;
+  double mean_track_length = 0;
+  int cross_camera_links = 0;
+  double rmse_px = 0;  // over all inlier observations, through the camera models
+  int observations = 0;
+  std::vector<long> dropped_frames;  // frame numbers with no image from any camera
+  std::vector<std::string> warnings;
+};
+
+// Progress: stage name, work done, work total (frames or iterations); `log`: one line per bundle
+// adjustment iteration and per stage. Either may be empty.
+struct ReconstructionCallbacks {
+  std::function<void(const std::string& stage, int done, int total)> progress;
+  std::function<void(const std::string& line)> log;
+};
+
+// Reads frame sets from `source` (one image per rig camera) and reconstructs. Throws odvr::Error
+// with a message that names the cause for the hard cases: fewer than 3 usable frames, images
+// whose size contradicts the rig file, a rig that does not move (static or purely rotating), a
+// frame that cannot be registered (a textureless stretch), a bundle adjustment that fails.
+Reconstruction Reconstruct(const capture::Rig& rig, capture::Source& source, const ReconstructionOptions& options,
+                           const ReconstructionCallbacks& callbacks = {});
+
+// Writes into `dir` (created): trajectory.json, trajectory.tum, cameras.txt, images.txt,
+// points3D.txt (COLMAP text model), road_plane.json, summary.json; each atomically.
+// `extra_summary`, when not empty, is a JSON object merged into summary.json.
+void WriteReconstruction(const Reconstruction& r, const std::filesystem::path& dir,
+                         const std::string& extra_summary_json = "");
+
+// summary.json's content.
+std::string ReconstructionSummaryJson(const Reconstruction& r);
+
+}  // namespace odvr::tracking
