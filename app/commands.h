@@ -22,6 +22,7 @@ CommandFn AddInfo(CLI::App* sub);
 CommandFn AddPlay(CLI::App* sub);
 CommandFn AddStitch(CLI::App* sub);
 CommandFn AddLight(CLI::App* sub);
+CommandFn AddRender(CLI::App* sub);
 CommandFn AddReconstruct(CLI::App* sub);
 CommandFn AddBench(CLI::App* sub);
 CommandFn AddBenchLight(CLI::App* sub);

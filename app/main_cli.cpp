@@ -15,6 +15,8 @@ const std::vector<CommandSpec>& Commands() {
       {"play", "Play a 360° video with free look (headless: render frames to PNG)", AddPlay},
       {"stitch", "Stitch rig frames into equirectangular frames (GPU or CPU), with per-frame times", AddStitch},
       {"light", "Turn an equirect frame into the multiscale SG lighting model, with its errors", AddLight},
+      {"render", "Render a glTF car lit by an equirect frame (SG triple product), with its shadow, over the frame",
+       AddRender},
       {"reconstruct", "Structure from motion of the rig: trajectory, sparse model, road plane, metric scale",
        AddReconstruct},
       {"bench", "Benchmarks: speed beside error, as tables and plots in docs/benchmarks", AddBench},

@@ -125,6 +125,25 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
   return out;
 }
 
+std::vector<float> LoadAlpha(const std::filesystem::path& path, int* width, int* height) {
+  const std::string name = path.string();
+  if (!std::filesystem::exists(path)) throw Error(name, "no such file");
+  auto in = OIIO::ImageInput::open(name);
+  if (!in) throw Error(name, "cannot read: not an image OpenImageIO can read");
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.width <= 0 || spec.height <= 0 || static_cast<long long>(spec.width) * spec.height > (1LL << 31))
+    throw Error(name, "empty or absurdly large image");
+  *width = spec.width;
+  *height = spec.height;
+  std::vector<float> alpha(static_cast<std::size_t>(spec.width) * spec.height, 1.f);
+  const int channel = spec.alpha_channel >= 0 ? spec.alpha_channel : (spec.nchannels >= 4 ? 3 : -1);
+  if (channel < 0) return alpha;
+  if (!in->read_image(0, 0, channel, channel + 1, OIIO::TypeDesc::FLOAT, alpha.data()))
+    throw Error(name, "corrupt or truncated alpha channel");
+  for (float& a : alpha) a = std::isfinite(a) ? std::clamp(a, 0.f, 1.f) : 0.f;
+  return alpha;
+}
+
 void SaveImage(const std::filesystem::path& path, const sphere::EquirectImage& image) {
   if (image.empty()) throw Error(path.string(), "refusing to write an empty image");
   std::string ext = path.extension().string();

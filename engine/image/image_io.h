@@ -6,6 +6,7 @@
 // never passed on.
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "engine/sphere/equirect_image.h"
 
@@ -34,6 +35,10 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
 
 // Replaces NaN, ±Inf and negative values by 0; returns {nan_or_inf, negative} counts (pixels).
 std::pair<long, long> SanitizePixels(sphere::EquirectImage* image);
+
+// The alpha channel of an image file (OpenImageIO's "A", else a 4th channel), one float per pixel,
+// rows top first; all 1 when there is none. Throws odvr::Error naming the file as LoadImage.
+std::vector<float> LoadAlpha(const std::filesystem::path& path, int* width, int* height);
 
 // Written atomically. EXR keeps linear float; PNG/JPEG are sRGB-encoded 8-bit (clamped).
 void SaveImage(const std::filesystem::path& path, const sphere::EquirectImage& image);

@@ -1,0 +1,59 @@
+#pragma once
+// Internals shared by the GPU path (triple_product_renderer.cpp) and the CPU reference
+// (triple_product_reference.cpp) of TripleProductRenderer. Not part of the engine's API.
+#include <glm/mat3x3.hpp>
+#include <glm/vec2.hpp>
+#include <memory>
+#include <vector>
+
+#include "engine/lighting/overlap_bins.h"
+#include "engine/render/triple_product_renderer.h"
+
+namespace odvr::render::detail {
+
+// The lighting as the shading stage reads it: SRBFs by global index (lighting/overlap_bins.h),
+// amplitude 0 where the model kept none, axes already rotated into the world.
+struct PreparedLighting {
+  glm::vec3 constant{0};
+  std::vector<lighting::RgbSg> srbfs;
+  std::vector<lighting::RgbSg> peaks;  // brightest first; the first kMaxPeakCones get cones
+  glm::dmat3 env_from_world{1.0};
+  int sg_count = 0;
+};
+
+// Per material: the BRDF terms of an override, or empty for the glTF metallic-roughness that the
+// G-buffer holds.
+using MaterialTerms = std::vector<std::vector<material::Brdf>>;
+
+// One frame's G-buffer, read back: RGBA float per pixel, top row first (render_gbuffer.frag).
+struct GBuffer {
+  int width = 0, height = 0;
+  std::vector<float> position;  // xyz, material index + 1 (0: empty)
+  std::vector<float> normal;    // xyz, roughness
+  std::vector<float> base;      // rgb, metallic
+};
+
+// Per-pixel counters, as render_shade.comp writes them: lobes, cones, triple products, SGs.
+struct PixelCounts {
+  unsigned lobes = 0, cones = 0, triples = 0, sgs = 0;
+};
+
+struct ReferenceInputs {
+  const GBuffer* gbuffer = nullptr;
+  PinholeCamera camera;
+  const MaterialTerms* materials = nullptr;
+  const PreparedLighting* lighting = nullptr;
+  const lighting::OverlapBins* bins = nullptr;
+  const visibility::VoxelGrid* grid = nullptr;  // nullptr: nothing occludes
+  RenderOptions options;
+  glm::dvec2 ground_centre{0, 0};  // xz
+};
+
+// The shading stage on the CPU (multithreaded): fills result->car, car_alpha, shadow,
+// ground_mask and `counts` (one per pixel).
+void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector<PixelCounts>* counts);
+
+// Half-value angle of an SG (π when it never falls to 1/2), as render_shade.comp computes it.
+double HalfValueAngle(double lambda);
+
+}  // namespace odvr::render::detail

@@ -1,0 +1,229 @@
+// The CPU reference of TripleProductRenderer's shading stage: render_shade.comp's loop in double,
+// built from the engine's own C++ pieces (material::AppendLobes, visibility::ConesForLobe,
+// VoxelGrid::TraceCone, OverlapBins::Query, the SG integrals), so that the GPU port is held to
+// them.
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <limits>
+
+#include "engine/core/parallel.h"
+#include "engine/lighting/sg.h"
+#include "engine/render/triple_product_internal.h"
+
+namespace odvr::render::detail {
+namespace {
+
+using lighting::Sg;
+
+struct ConeSet {
+  std::vector<visibility::Cone> cones;
+  std::vector<double> visibility;
+  double lambda = 0;
+  bool all_visible = true;
+};
+
+ConeSet TraceLobeCones(const Sg& lobe, const glm::dvec3& p, const ReferenceInputs& in) {
+  visibility::ConeSubsampleOptions co = in.options.cones;
+  co.rings = in.options.cone_rings;
+  ConeSet set;
+  set.cones = visibility::ConesForLobe(Sg{lobe.axis, lobe.lambda, 1.0}, co);
+  set.lambda = lighting::LambdaForHalfValueAngle(set.cones.front().half_angle);
+  for (const auto& c : set.cones) {
+    const double v = in.grid ? in.grid->TraceCone({glm::vec3(p), glm::vec3(c.axis), static_cast<float>(c.half_angle)},
+                                                  in.options.trace)
+                             : 1.0;
+    set.visibility.push_back(v);
+    set.all_visible = set.all_visible && v >= 1.0;
+  }
+  return set;
+}
+
+// The product of two unit SGs with its amplitude as a logarithm, r − Λ = −λ1λ2|c1 − c2|²/(r + Λ)
+// (sg_integral.glsl): a sharp product far from a cone has an amplitude below double's range.
+struct LogProduct {
+  glm::dvec3 axis;
+  double lambda, log_amplitude;
+};
+LogProduct ProductLog(const glm::dvec3& c1, double l1, const glm::dvec3& c2, double l2) {
+  const glm::dvec3 s = l1 * c1 + l2 * c2;
+  const double r = glm::length(s), sum = l1 + l2;
+  const glm::dvec3 d = c1 - c2;
+  return {r > 1e-12 ? s / r : c1, r, sum > 0 ? -l1 * l2 * glm::dot(d, d) / (r + sum) : 0.0};
+}
+
+// Σ v_i ∫P V_i / Σ ∫P V_i (see triple_product_renderer.h), exponents shifted by their maximum.
+double VisibleShare(const Sg& product, const ConeSet& set) {
+  std::vector<double> log_w(set.cones.size());
+  double top = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < set.cones.size(); ++i) {
+    const LogProduct q = ProductLog(product.axis, product.lambda, set.cones[i].axis, set.lambda);
+    // ∫ of a unit SG of λ is 2π (1 − e^{−2λ})/λ.
+    const double shape = q.lambda < 1e-6 ? 2.0 : -std::expm1(-2.0 * q.lambda) / q.lambda;
+    log_w[i] = q.log_amplitude + std::log(shape);
+    top = std::max(top, log_w[i]);
+  }
+  double num = 0, den = 0;
+  for (std::size_t i = 0; i < set.cones.size(); ++i) {
+    const double w = std::exp(log_w[i] - top);
+    num += w * set.visibility[i];
+    den += w;
+  }
+  return den > 0 ? num / den : set.visibility.front();
+}
+
+void AddLight(const Sg& lobe, const lighting::RgbSg& light, const ConeSet& set, glm::dvec3* shaded,
+              glm::dvec3* unshadowed, PixelCounts* count) {
+  const Sg l{light.axis, light.lambda, 1.0};
+  const double full = lighting::IntegralOfProduct(lobe, l);
+  double share = 1;
+  if (!set.all_visible) {
+    const LogProduct prod = ProductLog(lobe.axis, lobe.lambda, l.axis, l.lambda);
+    share = VisibleShare(Sg{prod.axis, prod.lambda, 1.0}, set);
+    count->triples += static_cast<unsigned>(set.cones.size());
+  }
+  *shaded += glm::dvec3(light.amplitude) * (full * share);
+  *unshadowed += glm::dvec3(light.amplitude) * full;
+  count->sgs += 1;
+}
+
+void ShadeLobe(const Sg& lobe, const ConeSet& set, const ReferenceInputs& in, glm::dvec3* shaded,
+               glm::dvec3* unshadowed, PixelCounts* count) {
+  const PreparedLighting& L = *in.lighting;
+  if (L.constant != glm::vec3(0)) AddLight(lobe, {{0, 1, 0}, 0.0, L.constant}, set, shaded, unshadowed, count);
+  if (in.bins && !L.srbfs.empty()) {
+    for (int g : in.bins->Query(L.env_from_world * lobe.axis, lobe.lambda)) {
+      const auto& s = L.srbfs[static_cast<std::size_t>(g)];
+      if (s.amplitude == glm::vec3(0)) continue;
+      AddLight(lobe, s, set, shaded, unshadowed, count);
+    }
+  }
+  const std::size_t first = in.options.peak_cones ? TripleProductRenderer::kMaxPeakCones : 0;
+  for (std::size_t k = first; k < L.peaks.size(); ++k) AddLight(lobe, L.peaks[k], set, shaded, unshadowed, count);
+}
+
+// render_shade.comp's peakIntegral: a sharp peak meets the clamped-cosine lobe as a directional
+// light against the exact cosine.
+constexpr double kSharpPeakLambda = 50;
+
+void ShadePeaks(const Sg& lobe, bool cosine, const std::vector<double>& peak_visibility, const ReferenceInputs& in,
+                glm::dvec3* shaded, glm::dvec3* unshadowed) {
+  if (!in.options.peak_cones) return;
+  const auto& peaks = in.lighting->peaks;
+  for (std::size_t k = 0; k < std::min<std::size_t>(peaks.size(), TripleProductRenderer::kMaxPeakCones); ++k) {
+    const Sg peak{peaks[k].axis, peaks[k].lambda, 1.0};
+    const double full =
+        cosine && peak.lambda >= kSharpPeakLambda
+            ? std::max(glm::dot(lobe.axis, peak.axis), 0.0) * lighting::Integral(peak) / material::kCosineSgAmplitude
+            : lighting::IntegralOfProduct(lobe, peak);
+    *shaded += glm::dvec3(peaks[k].amplitude) * (full * peak_visibility[k]);
+    *unshadowed += glm::dvec3(peaks[k].amplitude) * full;
+  }
+}
+
+std::vector<double> TracePeakCones(const glm::dvec3& p, const ReferenceInputs& in, PixelCounts* count) {
+  const auto& peaks = in.lighting->peaks;
+  const std::size_t traced = std::min<std::size_t>(peaks.size(), TripleProductRenderer::kMaxPeakCones);
+  std::vector<double> v(traced, 1.0);
+  if (!in.options.peak_cones) return v;
+  if (!in.grid) {
+    count->cones += static_cast<unsigned>(traced);
+    return v;
+  }
+  for (std::size_t k = 0; k < traced; ++k) {
+    const double a = std::min(HalfValueAngle(peaks[k].lambda), visibility::kMaxConeHalfAngle);
+    v[k] = in.grid->TraceCone({glm::vec3(p), glm::vec3(peaks[k].axis), static_cast<float>(a)}, in.options.trace);
+    count->cones += 1;
+  }
+  return v;
+}
+
+}  // namespace
+
+double HalfValueAngle(double lambda) {
+  return lambda > std::log(2.0) / 2 ? lighting::HalfValueAngleForLambda(lambda) : 3.14159265358979323846;
+}
+
+void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector<PixelCounts>* counts) {
+  const GBuffer& g = *in.gbuffer;
+  const int w = g.width, h = g.height;
+  result->car = sphere::EquirectImage(w, h, 0.f);
+  result->shadow = sphere::EquirectImage(w, h, 1.f);
+  result->car_alpha.assign(static_cast<std::size_t>(w) * h, 0.f);
+  result->ground_mask.assign(static_cast<std::size_t>(w) * h, 0.f);
+  counts->assign(static_cast<std::size_t>(w) * h, {});
+  const int material_count = static_cast<int>(in.materials->size());
+  static ThreadPool pool;
+  pool.ParallelFor(
+      static_cast<long>(w) * h,
+      [&](long begin, long end) {
+        std::vector<material::Lobe> lobes;
+        for (long i = begin; i < end; ++i) {
+          const auto idx = static_cast<std::size_t>(i);
+          const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
+          PixelCounts& count = (*counts)[idx];
+          const int material = static_cast<int>(std::lround(g.position[4 * idx + 3])) - 1;
+          if (material >= 0 && material < material_count) {
+            const glm::dvec3 p(g.position[4 * idx], g.position[4 * idx + 1], g.position[4 * idx + 2]);
+            const glm::dvec3 n =
+                glm::normalize(glm::dvec3(g.normal[4 * idx], g.normal[4 * idx + 1], g.normal[4 * idx + 2]));
+            const material::ShadingFrame frame = material::ShadingFrame::FromNormal(n);
+            const glm::dvec3 wo = glm::normalize(in.camera.position - p);
+            lobes.clear();
+            const auto& terms = (*in.materials)[static_cast<std::size_t>(material)];
+            if (terms.empty()) {
+              const material::MetallicRoughness mr{
+                  glm::dvec3(g.base[4 * idx], g.base[4 * idx + 1], g.base[4 * idx + 2]), g.base[4 * idx + 3],
+                  g.normal[4 * idx + 3]};
+              material::AppendLobes(mr, frame, wo, &lobes, in.options.lobes);
+            } else {
+              for (const auto& brdf : terms) material::AppendLobes(brdf, frame, wo, &lobes, in.options.lobes);
+            }
+            const glm::dvec3 origin =
+                p + n * (in.grid ? in.options.surface_offset_voxels * in.grid->spec().voxel_size : 0.0);
+            const std::vector<double> peak_v = TracePeakCones(origin, in, &count);
+            glm::dvec3 radiance(0);
+            for (const auto& lobe : lobes) {
+              const Sg unit{lobe.sg.axis, lobe.sg.lambda, 1.0};
+              const ConeSet set = TraceLobeCones(unit, origin, in);
+              glm::dvec3 shaded(0), unshadowed(0);
+              ShadeLobe(unit, set, in, &shaded, &unshadowed, &count);
+              const bool cosine =
+                  lobe.sg.lambda == material::kCosineSgLambda && lobe.sg.amplitude == material::kCosineSgAmplitude;
+              ShadePeaks(unit, cosine, peak_v, in, &shaded, &unshadowed);
+              radiance += lobe.weight * lobe.sg.amplitude * shaded;
+              count.lobes += 1;
+              count.cones += static_cast<unsigned>(set.cones.size());
+            }
+            for (int c = 0; c < 3; ++c) result->car.rgb[3 * idx + c] = static_cast<float>(radiance[c]);
+            result->car_alpha[idx] = 1.f;
+          } else if (in.options.ground) {
+            const glm::dvec3 dir = in.camera.Ray(x + 0.5, y + 0.5);
+            const double t = dir.y < 0 ? -in.camera.position.y / dir.y : -1.0;
+            glm::dvec3 p = in.camera.position + t * dir;
+            if (!(t > 0 && std::abs(p.x - in.ground_centre.x) <= in.options.ground_half_size &&
+                  std::abs(p.z - in.ground_centre.y) <= in.options.ground_half_size))
+              continue;
+            p.y = 0;
+            result->ground_mask[idx] = 1.f;
+            const Sg up{{0, 1, 0}, material::kCosineSgLambda, 1.0};
+            const ConeSet set = TraceLobeCones(up, p, in);
+            const std::vector<double> peak_v = TracePeakCones(p, in, &count);
+            count.cones += static_cast<unsigned>(set.cones.size());
+            bool lit = set.all_visible;
+            for (double v : peak_v) lit = lit && v >= 1.0;
+            if (lit) continue;
+            glm::dvec3 shaded(0), unshadowed(0);
+            ShadeLobe(up, set, in, &shaded, &unshadowed, &count);
+            ShadePeaks(up, true, peak_v, in, &shaded, &unshadowed);
+            count.lobes += 1;
+            for (int c = 0; c < 3; ++c)
+              result->shadow.rgb[3 * idx + c] =
+                  unshadowed[c] > 0 ? static_cast<float>(std::clamp(shaded[c] / unshadowed[c], 0.0, 1.0)) : 1.f;
+          }
+        }
+      },
+      16);
+}
+
+}  // namespace odvr::render::detail

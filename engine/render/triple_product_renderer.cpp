@@ -1,0 +1,837 @@
+#include "engine/render/triple_product_renderer.h"
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <glm/matrix.hpp>
+#include <map>
+#include <sstream>
+
+#include "engine/core/error.h"
+#include "engine/gl/context.h"
+#include "engine/gl/objects.h"
+#include "engine/gl/shader_library.h"
+#include "engine/render/triple_product_internal.h"
+#include "engine/scene/gltf_scene.h"
+#include "engine/sphere/equirect.h"
+#include "engine/sphere/healpix.h"
+#include "engine/visibility/voxelizer_gpu.h"
+
+namespace odvr::render {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+// render_shade.comp's material-term types (brdf_lobes.glsl).
+enum TermType : int {
+  kNone = 0,
+  kGltf = 1,
+  kLambertian = 2,
+  kPhong = 3,
+  kBlinnPhong = 4,
+  kWard = 5,
+  kCookTorrance = 6,
+  kMetallicRoughness = 7
+};
+
+struct GpuTerm {
+  glm::ivec4 type{0};
+  glm::vec4 color{0};
+  glm::vec4 params{0};
+};
+
+GpuTerm ToGpuTerm(const material::Brdf& brdf) {
+  GpuTerm t;
+  std::visit(
+      [&](const auto& m) {
+        using T = std::decay_t<decltype(m)>;
+        if constexpr (std::is_same_v<T, material::Lambertian>) {
+          t.type.x = kLambertian;
+          t.color = glm::vec4(glm::vec3(m.albedo), 0);
+        } else if constexpr (std::is_same_v<T, material::Phong>) {
+          t.type.x = kPhong;
+          t.color = glm::vec4(glm::vec3(m.ks), 0);
+          t.params.x = static_cast<float>(m.exponent);
+        } else if constexpr (std::is_same_v<T, material::BlinnPhong>) {
+          t.type.x = kBlinnPhong;
+          t.color = glm::vec4(glm::vec3(m.ks), 0);
+          t.params.x = static_cast<float>(m.exponent);
+        } else if constexpr (std::is_same_v<T, material::Ward>) {
+          if (std::abs(m.alpha_x - m.alpha_y) > 1e-9 * std::max(m.alpha_x, m.alpha_y))
+            throw Error("material override", "the renderer shades isotropic Ward only (alpha_x = alpha_y)");
+          t.type.x = kWard;
+          t.color = glm::vec4(glm::vec3(m.rho_s), 0);
+          t.params.x = static_cast<float>(m.alpha_x);
+        } else if constexpr (std::is_same_v<T, material::CookTorrance>) {
+          t.type.x = kCookTorrance;
+          t.color = glm::vec4(glm::vec3(m.f0), 0);
+          t.params.x = static_cast<float>(m.alpha);
+          t.params.y = m.ndf == material::Ndf::kBeckmann ? 1.f : 0.f;
+        } else {
+          t.type.x = kMetallicRoughness;
+          t.color = glm::vec4(glm::vec3(m.base_color), 0);
+          t.params.x = static_cast<float>(m.metallic);
+          t.params.y = static_cast<float>(m.roughness);
+        }
+      },
+      brdf);
+  return t;
+}
+
+std::string Lower(std::string s) {
+  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::vector<double> ParseNumbers(const std::string& list, const std::string& where) {
+  std::vector<double> out;
+  std::stringstream ss(list);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      std::size_t used = 0;
+      const double v = std::stod(item, &used);
+      if (used != item.size() || !std::isfinite(v)) throw std::invalid_argument(item);
+      out.push_back(v);
+    } catch (const std::exception&) {
+      throw UsageError(where, "'" + item + "' is not a number");
+    }
+  }
+  return out;
+}
+
+material::Brdf ParseTerm(const std::string& term, const std::string& where) {
+  const auto colon = term.find(':');
+  if (colon == std::string::npos) {
+    const auto v = ParseNumbers(term, where);
+    if (v.size() != 3) throw UsageError(where, "'" + term + "': want KD,KS,N or MODEL:PARAMS");
+    throw UsageError(where, "internal: KD,KS,N is two terms");  // handled by the caller
+  }
+  const std::string model = Lower(term.substr(0, colon));
+  const std::string rest = term.substr(colon + 1);
+  const bool beckmann = rest.size() > 9 && Lower(rest.substr(rest.size() - 9)) == ",beckmann";
+  const auto v = ParseNumbers(beckmann ? rest.substr(0, rest.size() - 9) : rest, where);
+  const auto want = [&](std::size_t n, const char* form) {
+    if (v.size() != n) throw UsageError(where, "'" + term + "': want " + form);
+  };
+  const auto in01 = [&](double x, const char* name) {
+    if (x < 0 || x > 1) throw UsageError(where, "'" + term + "': " + name + " must be in [0, 1]");
+  };
+  if (model == "lambert") {
+    want(3, "lambert:R,G,B");
+    for (double x : v) in01(x, "albedo");
+    return material::Lambertian{{v[0], v[1], v[2]}};
+  }
+  if (model == "phong" || model == "blinn") {
+    want(4, model == "phong" ? "phong:R,G,B,N" : "blinn:R,G,B,S");
+    for (int i = 0; i < 3; ++i) in01(v[static_cast<std::size_t>(i)], "ks");
+    if (v[3] < 0 || v[3] > 1e5) throw UsageError(where, "'" + term + "': exponent must be in [0, 1e5]");
+    if (model == "phong") return material::Phong{{v[0], v[1], v[2]}, v[3]};
+    return material::BlinnPhong{{v[0], v[1], v[2]}, v[3]};
+  }
+  if (model == "ward") {
+    want(4, "ward:R,G,B,ALPHA");
+    for (int i = 0; i < 3; ++i) in01(v[static_cast<std::size_t>(i)], "rho_s");
+    if (!(v[3] > 0 && v[3] <= 1)) throw UsageError(where, "'" + term + "': alpha must be in (0, 1]");
+    return material::Ward{{v[0], v[1], v[2]}, v[3], v[3]};
+  }
+  if (model == "ct") {
+    want(4, "ct:F0R,F0G,F0B,ALPHA[,beckmann]");
+    for (int i = 0; i < 3; ++i) in01(v[static_cast<std::size_t>(i)], "f0");
+    if (!(v[3] > 0 && v[3] <= 1)) throw UsageError(where, "'" + term + "': alpha must be in (0, 1]");
+    return material::CookTorrance{{v[0], v[1], v[2]}, v[3], beckmann ? material::Ndf::kBeckmann : material::Ndf::kGgx};
+  }
+  if (model == "mr") {
+    want(5, "mr:R,G,B,METALLIC,ROUGHNESS");
+    for (double x : v) in01(x, "every value");
+    return material::MetallicRoughness{{v[0], v[1], v[2]}, v[3], v[4]};
+  }
+  throw UsageError(where, "unknown BRDF '" + model + "' (lambert, phong, blinn, ward, ct, mr)");
+}
+
+// Everything of the lighting that the shading stage reads, in the world frame.
+detail::PreparedLighting Prepare(const lighting::SgLighting& model, const glm::dmat3& world_from_lighting,
+                                 int max_levels) {
+  detail::PreparedLighting p;
+  p.env_from_world = glm::transpose(world_from_lighting);
+  p.constant = model.constant;
+  p.sg_count = model.constant != glm::vec3(0) ? 1 : 0;
+  int deepest = -1;
+  for (const auto& l : model.levels)
+    if (l.level < max_levels) deepest = std::max(deepest, l.level);
+  if (deepest >= 0) {
+    p.srbfs.assign(static_cast<std::size_t>(lighting::GlobalSrbfIndex(max_levels, 0)), {});
+    for (const auto& l : model.levels) {
+      if (l.level >= max_levels) continue;
+      const auto& hp = sphere::Healpix(l.level);
+      for (std::size_t i = 0; i < l.indices.size(); ++i) {
+        auto& s = p.srbfs[static_cast<std::size_t>(lighting::GlobalSrbfIndex(l.level, l.indices[i]))];
+        s.axis = world_from_lighting * hp.centre(l.indices[i]);
+        s.lambda = l.lambda;
+        s.amplitude += l.amplitudes[i];
+        ++p.sg_count;
+      }
+    }
+  }
+  std::vector<lighting::RgbSg> peaks = model.peaks;
+  // Brightest first: ∫G μ summed over the channels.
+  std::stable_sort(peaks.begin(), peaks.end(), [](const auto& a, const auto& b) {
+    return lighting::Integral({a.axis, a.lambda, 1.0}) * (a.amplitude.x + a.amplitude.y + a.amplitude.z) >
+           lighting::Integral({b.axis, b.lambda, 1.0}) * (b.amplitude.x + b.amplitude.y + b.amplitude.z);
+  });
+  for (auto& pk : peaks) {
+    pk.axis = glm::normalize(world_from_lighting * pk.axis);
+    p.peaks.push_back(pk);
+  }
+  p.sg_count += static_cast<int>(p.peaks.size());
+  return p;
+}
+
+glm::vec4 LightVec(const glm::dvec3& a, double l) { return glm::vec4(glm::vec3(a), static_cast<float>(l)); }
+
+template <class T>
+gl::Buffer MakeBuffer(const std::vector<T>& data) {
+  gl::Buffer b;
+  if (data.empty()) {
+    b.Allocate(16);
+  } else {
+    b.SetData(data);
+  }
+  return b;
+}
+
+// Bilinear look-up with GL's rules (texel centres at +0.5), longitude wrapping, latitude clamped.
+glm::vec3 SampleEquirect(const sphere::EquirectImage& img, const glm::dvec3& d) {
+  const glm::dvec2 px = sphere::EquirectPixel(d, img.width, img.height);
+  const double x = px.x - 0.5, y = std::clamp(px.y - 0.5, 0.0, img.height - 1.0);
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const double fx = x - x0, fy = y - y0;
+  const auto at = [&](int c, int r) {
+    c = ((c % img.width) + img.width) % img.width;
+    r = std::clamp(r, 0, img.height - 1);
+    const float* v = img.at(c, r);
+    return glm::dvec3(v[0], v[1], v[2]);
+  };
+  return glm::vec3((1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x0 + 1, y0)) +
+                   fy * ((1 - fx) * at(x0, y0 + 1) + fx * at(x0 + 1, y0 + 1)));
+}
+
+}  // namespace
+
+// --- camera, overrides, options -----------------------------------------------------------------
+
+PinholeCamera PinholeCamera::LookAt(const glm::dvec3& position, const glm::dvec3& target, double vfov_deg, int width,
+                                    int height, const glm::dvec3& up) {
+  const glm::dvec3 forward = target - position;
+  if (!(glm::length(forward) > 1e-9)) throw Error("camera", "target coincides with the position");
+  const glm::dvec3 z = glm::normalize(forward);
+  const glm::dvec3 side = glm::cross(z, up);
+  if (!(glm::length(side) > 1e-9 * glm::length(up))) throw Error("camera", "view direction is parallel to up");
+  const glm::dvec3 x = glm::normalize(side);
+  PinholeCamera c;
+  c.position = position;
+  c.world_from_camera = glm::dmat3(x, glm::cross(z, x), z);
+  c.vfov_deg = vfov_deg;
+  c.width = width;
+  c.height = height;
+  c.Check();
+  return c;
+}
+
+double PinholeCamera::focal_px() const { return 0.5 * height / std::tan(0.5 * vfov_deg * sphere::kPi / 180.0); }
+
+glm::dvec3 PinholeCamera::Ray(double x, double y) const {
+  const double f = focal_px();
+  return glm::normalize(world_from_camera * glm::dvec3((x - 0.5 * width) / f, (y - 0.5 * height) / f, 1.0));
+}
+
+void PinholeCamera::Check() const {
+  if (!(vfov_deg > 0.1 && vfov_deg < 179)) throw Error("camera fov", "must be in (0.1, 179) degrees");
+  if (width < 1 || height < 1 || width > 16384 || height > 16384)
+    throw Error("camera size",
+                "must be 1..16384 pixels per side, got " + std::to_string(width) + "x" + std::to_string(height));
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(position[i])) throw Error("camera position", "must be finite");
+}
+
+MaterialOverride ParseMaterialOverride(const std::string& text) {
+  const std::string where = "--material " + text;
+  MaterialOverride out;
+  std::string spec = text;
+  if (const auto eq = text.find('='); eq != std::string::npos) {
+    out.material = text.substr(0, eq);
+    spec = text.substr(eq + 1);
+  }
+  if (spec.empty()) throw UsageError(where, "no BRDF given");
+  if (spec.find(':') == std::string::npos) {
+    const auto v = ParseNumbers(spec, where);
+    if (v.size() != 3) throw UsageError(where, "want KD,KS,N or MODEL:PARAMS[+MODEL:PARAMS]");
+    if (v[0] < 0 || v[0] > 1 || v[1] < 0 || v[1] > 1 || v[0] + v[1] > 1)
+      throw UsageError(where, "kd and ks must be in [0, 1] with kd + ks <= 1");
+    if (v[2] < 0 || v[2] > 1e5) throw UsageError(where, "the Phong exponent must be in [0, 1e5]");
+    out.brdfs = {material::Lambertian{glm::dvec3(v[0])}, material::Phong{glm::dvec3(v[1]), v[2]}};
+    return out;
+  }
+  std::stringstream ss(spec);
+  std::string term;
+  while (std::getline(ss, term, '+')) out.brdfs.push_back(ParseTerm(term, where));
+  if (out.brdfs.empty() || out.brdfs.size() > static_cast<std::size_t>(TripleProductRenderer::kTermsPerMaterial))
+    throw UsageError(where, "give one or two BRDF terms");
+  return out;
+}
+
+void RenderOptions::Check() const {
+  if (lighting_levels < 1 || lighting_levels > 6) throw Error("render levels", "must be in 1..6");
+  if (cone_rings < 0 || cone_rings > 3) throw Error("render cones", "rings must be in 0..3 (1, 7, 19 or 37 cones)");
+  if (voxel_resolution < 64 || voxel_resolution > 512 || (voxel_resolution & (voxel_resolution - 1)) != 0)
+    throw Error("render voxels", "must be a power of two in 64..512, got " + std::to_string(voxel_resolution));
+  if (!(ground_half_size > 0)) throw Error("render ground_half_size", "must be positive");
+  if (!(surface_offset_voxels >= 0 && surface_offset_voxels <= 8))
+    throw Error("render surface_offset_voxels", "must be in [0, 8]");
+  if (!(overlap_min_retention > 0 && overlap_min_retention < 1))
+    throw Error("render overlap_min_retention", "must be in (0, 1)");
+  for (const auto& m : materials)
+    if (m.brdfs.empty() || m.brdfs.size() > static_cast<std::size_t>(TripleProductRenderer::kTermsPerMaterial))
+      throw Error("render material override", "needs one or two BRDF terms");
+  visibility::ConeSubsampleOptions c = cones;
+  c.rings = cone_rings;
+  c.Check();
+  trace.Check();
+}
+
+// --- the renderer ---------------------------------------------------------------------------------
+
+struct TripleProductRenderer::Impl {
+  struct Primitive {
+    gl::VertexArray vao;
+    gl::Buffer positions, normals, uv0, uv1, tangents, indices;
+    GLsizei index_count = 0;
+    int material = 0;
+  };
+  std::vector<Primitive> primitives;
+  std::vector<scene::PbrMaterial> materials;
+  std::map<std::pair<int, bool>, gl::Texture> textures;  // (image, sRGB)
+  gl::Texture white{gl::NoCreate};
+  detail::MaterialTerms material_terms;
+  gl::Buffer terms_buffer{gl::NoCreate}, ndf_table{gl::NoCreate};
+
+  std::vector<glm::vec3> triangles;  // world
+  scene::Bounds bounds;
+  visibility::VoxelGridSpec spec;
+  bool has_geometry = false;
+  std::unique_ptr<visibility::VoxelizerGpu> voxelizer;
+  gl::Buffer triangle_buffer{gl::NoCreate};
+  std::unique_ptr<visibility::VoxelGrid> cpu_grid;
+
+  std::unique_ptr<lighting::OverlapBins> bins;
+  gl::Buffer bin_levels{gl::NoCreate}, bin_begin{gl::NoCreate}, bin_srbfs{gl::NoCreate};
+  detail::PreparedLighting lighting;
+  gl::Buffer srbf_buffer{gl::NoCreate}, peak_buffer{gl::NoCreate};
+
+  sphere::EquirectImage environment, background_image;
+  gl::Texture environment_texture{gl::NoCreate};
+  bool background_is_image = false;
+
+  gl::Program gbuffer_program{gl::NoCreate}, shade_program{gl::NoCreate}, composite_program{gl::NoCreate};
+  int fb_width = 0, fb_height = 0;
+  gl::Framebuffer framebuffer{gl::NoCreate};
+  gl::Texture g_position{gl::NoCreate}, g_normal{gl::NoCreate}, g_base{gl::NoCreate}, g_depth{gl::NoCreate};
+  gl::Texture car_layer{gl::NoCreate}, shadow_layer{gl::NoCreate}, composite_layer{gl::NoCreate},
+      background_layer{gl::NoCreate};
+  gl::Buffer counts{gl::NoCreate};
+
+  const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb) {
+    auto key = std::make_pair(image, srgb);
+    auto it = textures.find(key);
+    if (it != textures.end()) return it->second;
+    const auto& img = model.images.at(static_cast<std::size_t>(image));
+    const int levels = 1 + static_cast<int>(std::floor(std::log2(std::max(img.width, img.height))));
+    gl::Texture t = gl::Texture::Create2D(srgb ? GL_SRGB8_ALPHA8 : GL_RGBA8, img.width, img.height, levels);
+    t.Upload2D(GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data()).GenerateMipmaps();
+    t.SetWrap(GL_REPEAT, GL_REPEAT).SetFilter(GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR);
+    return textures.emplace(key, std::move(t)).first->second;
+  }
+
+  void EnsureTargets(int w, int h) {
+    if (w == fb_width && h == fb_height) return;
+    fb_width = w;
+    fb_height = h;
+    const auto rgba32 = [&] {
+      gl::Texture t = gl::Texture::Create2D(GL_RGBA32F, w, h);
+      t.SetFilter(GL_NEAREST, GL_NEAREST);
+      return t;
+    };
+    g_position = rgba32();
+    g_normal = rgba32();
+    g_base = rgba32();
+    car_layer = rgba32();
+    shadow_layer = rgba32();
+    composite_layer = rgba32();
+    background_layer = rgba32();
+    g_depth = gl::Texture::Create2D(GL_DEPTH_COMPONENT32F, w, h);
+    framebuffer = gl::Framebuffer();
+    framebuffer.AttachColor(g_position, 0).AttachColor(g_normal, 1).AttachColor(g_base, 2).AttachDepth(g_depth);
+    const GLenum draw[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+    glNamedFramebufferDrawBuffers(framebuffer.id(), 3, draw);
+    framebuffer.CheckComplete();
+    counts = gl::Buffer();
+    counts.Allocate(static_cast<std::size_t>(w) * h * 16);
+  }
+};
+
+TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, const glm::dmat4& world_from_model,
+                                             RenderOptions options)
+    : options_(std::move(options)), impl_(std::make_unique<Impl>()) {
+  options_.Check();
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j)
+      if (!std::isfinite(world_from_model[i][j])) throw Error("world_from_model", "must be finite");
+  const glm::dmat3 linear(world_from_model);
+  if (!(std::abs(glm::determinant(linear)) > 1e-12)) throw Error("world_from_model", "is singular");
+  gl::RequireCurrentGl45("triple-product renderer");
+  Impl& im = *impl_;
+  im.gbuffer_program = gl::ShaderLibrary::Graphics("render_gbuffer.vert", "render_gbuffer.frag");
+  im.shade_program = gl::ShaderLibrary::Compute("render_shade.comp",
+                                                "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n");
+  im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
+  im.white = gl::Texture::Create2D(GL_RGBA8, 1, 1);
+  const std::uint8_t white[4] = {255, 255, 255, 255};
+  im.white.Upload2D(GL_RGBA, GL_UNSIGNED_BYTE, white);
+
+  // Geometry into the world once; the voxelizer and the G-buffer share it.
+  const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(linear));
+  const bool flips = glm::determinant(linear) < 0;
+  im.materials = model.materials;
+  if (im.materials.empty()) im.materials.emplace_back();
+  for (const auto& prim : model.primitives) {
+    if (prim.indices.empty() || prim.positions.empty()) continue;
+    const std::size_t n = prim.positions.size();
+    std::vector<glm::vec3> pos(n), nor(n);
+    std::vector<glm::vec2> uv0(n, glm::vec2(0)), uv1(n, glm::vec2(0));
+    std::vector<glm::vec4> tan(n, glm::vec4(0));
+    for (std::size_t i = 0; i < n; ++i) {
+      pos[i] = glm::vec3(world_from_model * glm::dvec4(glm::dvec3(prim.positions[i]), 1.0));
+      const glm::dvec3 nn = normal_matrix * glm::dvec3(i < prim.normals.size() ? prim.normals[i] : glm::vec3(0));
+      nor[i] = glm::length(nn) > 0 ? glm::vec3(glm::normalize(nn)) : glm::vec3(0);
+      if (i < prim.uv0.size()) uv0[i] = prim.uv0[i];
+      if (i < prim.uv1.size()) uv1[i] = prim.uv1[i];
+      if (i < prim.tangents.size()) {
+        const glm::dvec3 t = linear * glm::dvec3(glm::vec3(prim.tangents[i]));
+        tan[i] = glm::vec4(glm::length(t) > 0 ? glm::vec3(glm::normalize(t)) : glm::vec3(0),
+                           prim.tangents[i].w * (flips ? -1.f : 1.f));
+      }
+      im.bounds.Extend(pos[i]);
+    }
+    std::vector<std::uint32_t> idx = prim.indices;
+    if (flips)
+      for (std::size_t t = 0; t + 2 < idx.size(); t += 3) std::swap(idx[t + 1], idx[t + 2]);
+    for (std::uint32_t k : idx) im.triangles.push_back(pos[k]);
+    Impl::Primitive p;
+    p.positions.SetData(pos);
+    p.normals.SetData(nor);
+    p.uv0.SetData(uv0);
+    p.uv1.SetData(uv1);
+    p.tangents.SetData(tan);
+    p.indices.SetData(idx);
+    p.index_count = static_cast<GLsizei>(idx.size());
+    p.material = std::clamp(prim.material, 0, static_cast<int>(im.materials.size()) - 1);
+    p.vao.AddFloatAttribute(0, p.positions, 0, 3, 0, sizeof(glm::vec3))
+        .AddFloatAttribute(1, p.normals, 1, 3, 0, sizeof(glm::vec3))
+        .AddFloatAttribute(2, p.uv0, 2, 2, 0, sizeof(glm::vec2))
+        .AddFloatAttribute(3, p.uv1, 3, 2, 0, sizeof(glm::vec2))
+        .AddFloatAttribute(4, p.tangents, 4, 4, 0, sizeof(glm::vec4))
+        .SetIndexBuffer(p.indices);
+    const auto& mat = im.materials[static_cast<std::size_t>(p.material)];
+    if (mat.base_color_texture.valid()) im.TextureFor(model, mat.base_color_texture.image, true);
+    if (mat.metallic_roughness_texture.valid()) im.TextureFor(model, mat.metallic_roughness_texture.image, false);
+    if (mat.normal_texture.valid()) im.TextureFor(model, mat.normal_texture.image, false);
+    im.primitives.push_back(std::move(p));
+  }
+  im.has_geometry = !im.triangles.empty();
+  if (im.has_geometry) {
+    im.spec = visibility::VoxelGridSpec::Covering(glm::dvec3(im.bounds.min), glm::dvec3(im.bounds.max),
+                                                  options_.voxel_resolution);
+    im.voxelizer = std::make_unique<visibility::VoxelizerGpu>(im.spec);
+    std::vector<glm::vec4> padded(im.triangles.size());
+    for (std::size_t i = 0; i < padded.size(); ++i) padded[i] = glm::vec4(im.triangles[i], 1.f);
+    im.triangle_buffer = MakeBuffer(padded);
+  } else {
+    im.spec = visibility::VoxelGridSpec::Covering(glm::dvec3(-1), glm::dvec3(1), options_.voxel_resolution);
+  }
+
+  // Material terms: the glTF metallic-roughness unless an override names the material.
+  std::vector<GpuTerm> gpu_terms;
+  for (const auto& mat : im.materials) {
+    std::vector<material::Brdf> terms;
+    for (const auto& o : options_.materials)
+      if (o.material.empty() || Lower(mat.name).find(Lower(o.material)) != std::string::npos) terms = o.brdfs;
+    std::vector<GpuTerm> row(kTermsPerMaterial);
+    if (terms.empty()) {
+      row[0].type.x = kGltf;
+    } else {
+      for (std::size_t k = 0; k < terms.size(); ++k) row[k] = ToGpuTerm(terms[k]);
+    }
+    gpu_terms.insert(gpu_terms.end(), row.begin(), row.end());
+    im.material_terms.push_back(std::move(terms));
+  }
+  im.terms_buffer = MakeBuffer(gpu_terms);
+  // λα² of the NDF's SG fit on α ∈ [kMinAlpha, 1] (brdf_lobes.glsl interpolates it).
+  std::vector<float> table(512);
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    const double a = material::kMinAlpha + (1.0 - material::kMinAlpha) * static_cast<double>(i) / (table.size() - 1);
+    table[i] = static_cast<float>(material::NdfSgLambda(a) * a * a);
+  }
+  im.ndf_table = MakeBuffer(table);
+
+  // Overlap bins for the levels used, flattened for the shader.
+  lighting::OverlapBinOptions bo;
+  bo.lighting_levels = options_.lighting_levels;
+  bo.min_retention = options_.overlap_min_retention;
+  im.bins = std::make_unique<lighting::OverlapBins>(bo);
+  std::vector<glm::vec4> levels;
+  std::vector<int> begin, srbfs;
+  for (const auto& l : im.bins->levels()) {
+    levels.push_back(
+        glm::vec4(static_cast<float>(l.lambda), static_cast<float>(l.n), static_cast<float>(begin.size()), 0));
+    const int base = static_cast<int>(srbfs.size());
+    for (int b : l.begin) begin.push_back(base + b);
+    srbfs.insert(srbfs.end(), l.srbfs.begin(), l.srbfs.end());
+  }
+  im.bin_levels = MakeBuffer(levels);
+  im.bin_begin = MakeBuffer(begin);
+  im.bin_srbfs = MakeBuffer(srbfs);
+  SetLighting(lighting::SgLighting{});
+}
+
+TripleProductRenderer::~TripleProductRenderer() = default;
+
+const std::vector<glm::vec3>& TripleProductRenderer::world_triangles() const { return impl_->triangles; }
+const visibility::VoxelGridSpec& TripleProductRenderer::voxel_spec() const { return impl_->spec; }
+int TripleProductRenderer::peaks_without_cone() const {
+  return std::max(0, static_cast<int>(impl_->lighting.peaks.size()) - kMaxPeakCones);
+}
+
+void TripleProductRenderer::SetLighting(const lighting::SgLighting& model, const glm::dmat3& world_from_lighting) {
+  Impl& im = *impl_;
+  im.lighting = Prepare(model, world_from_lighting, options_.lighting_levels);
+  std::vector<glm::vec4> srbfs;
+  for (const auto& s : im.lighting.srbfs) {
+    srbfs.push_back(LightVec(s.axis, s.lambda));
+    srbfs.push_back(glm::vec4(s.amplitude, 0));
+  }
+  std::vector<glm::vec4> peaks;
+  for (const auto& s : im.lighting.peaks) {
+    peaks.push_back(LightVec(s.axis, s.lambda));
+    peaks.push_back(glm::vec4(s.amplitude, 0));
+  }
+  im.srbf_buffer = MakeBuffer(srbfs);
+  im.peak_buffer = MakeBuffer(peaks);
+}
+
+void TripleProductRenderer::SetEnvironment(const sphere::EquirectImage& equirect) {
+  if (equirect.empty()) throw Error("environment", "empty image");
+  Impl& im = *impl_;
+  im.environment = equirect;
+  im.background_is_image = false;
+  im.environment_texture = gl::Texture::Create2D(GL_RGB32F, equirect.width, equirect.height);
+  im.environment_texture.Upload2D(GL_RGB, GL_FLOAT, equirect.rgb.data());
+  im.environment_texture.SetWrap(GL_REPEAT, GL_CLAMP_TO_EDGE).SetFilter(GL_LINEAR, GL_LINEAR);
+}
+
+void TripleProductRenderer::SetBackgroundImage(const sphere::EquirectImage& image) {
+  if (image.empty()) throw Error("background", "empty image");
+  Impl& im = *impl_;
+  im.background_image = image;
+  im.background_is_image = true;
+  im.environment_texture = gl::Texture::Create2D(GL_RGB32F, image.width, image.height);
+  im.environment_texture.Upload2D(GL_RGB, GL_FLOAT, image.rgb.data());
+  im.environment_texture.SetFilter(GL_NEAREST, GL_NEAREST);
+}
+
+RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDevice device) {
+  camera.Check();
+  Impl& im = *impl_;
+  const int w = camera.width, h = camera.height;
+  if (im.background_is_image && (im.background_image.width != w || im.background_image.height != h))
+    throw Error("background", "image is " + std::to_string(im.background_image.width) + "x" +
+                                  std::to_string(im.background_image.height) + ", the output " + std::to_string(w) +
+                                  "x" + std::to_string(h));
+  if (device == ShadeDevice::kGpu && (options_.lobes.warp != material::WarpMode::kIsotropic ||
+                                      options_.lobes.cosine != material::CosineTerm::kAtLobeAxis))
+    throw Error("render lobes", "the GPU pass shades the isotropic warp with the cosine at the lobe axis only");
+  RenderResult out;
+  const auto t_total = Clock::now();
+  gl::Finish();
+
+  // Voxelize.
+  auto t0 = Clock::now();
+  if (im.has_geometry) {
+    if (device == ShadeDevice::kGpu) {
+      im.voxelizer->Voxelize(im.triangle_buffer, im.triangles.size() / 3);
+      gl::Finish();
+    } else {
+      im.cpu_grid = std::make_unique<visibility::VoxelGrid>(im.spec);
+      im.cpu_grid->Voxelize(im.triangles);
+      im.cpu_grid->BuildMips();
+    }
+  }
+  out.ms.voxelize = MsSince(t0);
+
+  // G-buffer.
+  t0 = Clock::now();
+  im.EnsureTargets(w, h);
+  const glm::dmat3 camera_from_world = glm::transpose(camera.world_from_camera);
+  const double f = camera.focal_px();
+  double near = 0.01, far = 10;
+  if (im.has_geometry) {
+    double dmin = 1e300, dmax = 0;
+    for (int c = 0; c < 8; ++c) {
+      const glm::dvec3 corner((c & 1) ? im.bounds.max.x : im.bounds.min.x, (c & 2) ? im.bounds.max.y : im.bounds.min.y,
+                              (c & 4) ? im.bounds.max.z : im.bounds.min.z);
+      const double z = (camera_from_world * (corner - camera.position)).z;
+      dmin = std::min(dmin, z);
+      dmax = std::max(dmax, z);
+    }
+    far = std::max(dmax * 1.01 + 0.01, 0.02);
+    near = std::clamp(dmin * 0.99, far * 1e-6, far * 0.5);
+    if (dmin <= 0) near = std::max(far * 1e-6, 1e-3);
+  }
+  glm::dmat4 clip(0.0);  // column-major: clip[col][row]
+  clip[0][0] = 2 * f / w;
+  clip[1][1] = 2 * f / h;
+  clip[2][2] = (far + near) / (far - near);
+  clip[3][2] = -2 * far * near / (far - near);
+  clip[2][3] = 1;
+  glm::dmat4 view(camera_from_world);
+  view[3] = glm::dvec4(-(camera_from_world * camera.position), 1.0);
+  const glm::mat4 clip_from_world(clip * view);
+
+  im.framebuffer.Bind();
+  glViewport(0, 0, w, h);
+  const float zero[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 3; ++i) glClearNamedFramebufferfv(im.framebuffer.id(), GL_COLOR, i, zero);
+  const float one = 1.f;
+  glClearNamedFramebufferfv(im.framebuffer.id(), GL_DEPTH, 0, &one);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_BLEND);
+  // The clip transform flips y (image rows grow downward), which turns CCW faces CW on screen.
+  glFrontFace(GL_CW);
+  gl::Program& gp = im.gbuffer_program;
+  gp.SetMat4("uClipFromWorld", glm::value_ptr(clip_from_world))
+      .Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
+           static_cast<float>(camera.position.z));
+  for (auto& p : im.primitives) {
+    const auto& m = im.materials[static_cast<std::size_t>(p.material)];
+    gp.Set("uMaterialId", static_cast<float>(p.material + 1))
+        .Set("uBaseColorFactor", m.base_color_factor.x, m.base_color_factor.y, m.base_color_factor.z,
+             m.base_color_factor.w)
+        .Set("uMetallicFactor", m.metallic_factor)
+        .Set("uRoughnessFactor", m.roughness_factor)
+        .Set("uNormalScale", m.normal_scale)
+        .Set("uAlphaCutoff", m.alpha_mode == scene::PbrMaterial::AlphaMode::kMask ? m.alpha_cutoff : -1.f);
+    const scene::TextureRef* refs[3] = {&m.base_color_texture, &m.metallic_roughness_texture, &m.normal_texture};
+    for (int k = 0; k < 3; ++k) {
+      const auto& r = *refs[k];
+      const std::string s = std::to_string(k);
+      glProgramUniform2i(gp.id(), gp.Uniform(("uTexUse[" + s + "]").c_str()), r.valid() ? 1 : 0, r.texcoord);
+      gp.Set(("uTexOffsetScale[" + s + "]").c_str(), r.offset.x, r.offset.y, r.scale.x, r.scale.y)
+          .Set(("uTexRotation[" + s + "]").c_str(), r.rotation);
+      if (r.valid()) {
+        const auto it = im.textures.find({r.image, k == 0});
+        if (it != im.textures.end()) {
+          it->second.BindUnit(static_cast<GLuint>(k));
+          continue;
+        }
+      }
+      im.white.BindUnit(static_cast<GLuint>(k));
+    }
+    gp.Use();
+    p.vao.Bind();
+    glDrawElements(GL_TRIANGLES, p.index_count, GL_UNSIGNED_INT, nullptr);
+  }
+  glFrontFace(GL_CCW);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  gl::Finish();
+  out.ms.gbuffer = MsSince(t0);
+
+  const glm::dvec2 ground_centre(im.bounds.empty() ? 0.0 : im.bounds.center().x,
+                                 im.bounds.empty() ? 0.0 : im.bounds.center().z);
+  const std::size_t pixels = static_cast<std::size_t>(w) * h;
+  std::vector<detail::PixelCounts> counts;
+
+  // Shade.
+  t0 = Clock::now();
+  if (device == ShadeDevice::kGpu) {
+    gl::Program& sp = im.shade_program;
+    const glm::mat3 wfc(camera.world_from_camera), efw(im.lighting.env_from_world);
+    glProgramUniform2i(sp.id(), sp.Uniform("uSize"), w, h);
+    sp.Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
+           static_cast<float>(camera.position.z))
+        .SetMat3("uWorldFromCamera", glm::value_ptr(wfc))
+        .Set("uFocal", static_cast<float>(f))
+        .SetMat3("uEnvFromWorld", glm::value_ptr(efw))
+        .Set("uConstant", im.lighting.constant.x, im.lighting.constant.y, im.lighting.constant.z)
+        .Set("uPeakCount", static_cast<int>(im.lighting.peaks.size()))
+        .Set("uPeakCones", options_.peak_cones ? 1 : 0)
+        .Set("uBinLevelCount", im.lighting.srbfs.empty() ? 0 : static_cast<int>(im.bins->levels().size()))
+        .Set("uSingleConeMaxHalfAngle", static_cast<float>(options_.cones.single_cone_max_half_angle))
+        .Set("uConeCoverage", static_cast<float>(options_.cones.coverage))
+        .Set("uMaxConeHalfAngle", static_cast<float>(visibility::kMaxConeHalfAngle))
+        .Set("uTermsPerMaterial", kTermsPerMaterial)
+        .Set("uMaterialCount", static_cast<int>(im.materials.size()))
+        .Set("uSurfaceOffset", static_cast<float>(options_.surface_offset_voxels * im.spec.voxel_size))
+        .Set("uGround", options_.ground ? 1 : 0)
+        .Set("uGroundCenter", static_cast<float>(ground_centre.x), static_cast<float>(ground_centre.y))
+        .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
+        .Set("uVoxelOrigin", static_cast<float>(im.spec.origin.x), static_cast<float>(im.spec.origin.y),
+             static_cast<float>(im.spec.origin.z))
+        .Set("uVoxelSize", static_cast<float>(im.spec.voxel_size))
+        .Set("uVoxelSide", static_cast<float>(im.spec.side()))
+        .Set("uVoxelTopLevel", im.has_geometry ? im.spec.levels() - 1 : -1)
+        .Set("uConeStartOffset", static_cast<float>(options_.trace.start_offset_voxels))
+        .Set("uConeStepScale", static_cast<float>(options_.trace.step_scale))
+        .Set("uConeMaxDistance", static_cast<float>(options_.trace.max_distance))
+        .Set("uConeOpaque", static_cast<float>(options_.trace.opaque_threshold))
+        .Set("uConePartialExponent", static_cast<float>(options_.trace.partial_opacity_exponent));
+    if (im.has_geometry) glBindTextureUnit(0, im.voxelizer->texture().id());
+    im.g_position.BindImage(0, GL_READ_ONLY);
+    im.g_normal.BindImage(1, GL_READ_ONLY);
+    im.g_base.BindImage(2, GL_READ_ONLY);
+    im.car_layer.BindImage(3, GL_WRITE_ONLY);
+    im.shadow_layer.BindImage(4, GL_WRITE_ONLY);
+    im.srbf_buffer.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
+    im.peak_buffer.BindBase(GL_SHADER_STORAGE_BUFFER, 1);
+    im.bin_levels.BindBase(GL_SHADER_STORAGE_BUFFER, 2);
+    im.bin_begin.BindBase(GL_SHADER_STORAGE_BUFFER, 3);
+    im.bin_srbfs.BindBase(GL_SHADER_STORAGE_BUFFER, 4);
+    im.terms_buffer.BindBase(GL_SHADER_STORAGE_BUFFER, 5);
+    im.counts.BindBase(GL_SHADER_STORAGE_BUFFER, 6);
+    im.ndf_table.BindBase(GL_SHADER_STORAGE_BUFFER, 7);
+    glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+    sp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+    glMemoryBarrier(GL_ALL_BARRIER_BITS);
+    gl::Finish();
+    out.ms.shade = MsSince(t0);
+
+    // Composite.
+    t0 = Clock::now();
+    gl::Program& cp = im.composite_program;
+    cp.Set("uBackgroundIsImage", im.background_is_image ? 1 : 0)
+        .Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
+             static_cast<float>(camera.position.z))
+        .SetMat3("uWorldFromCamera", glm::value_ptr(wfc))
+        .Set("uFocal", static_cast<float>(f))
+        .SetMat3("uEnvFromWorld", glm::value_ptr(efw));
+    glProgramUniform2i(cp.id(), cp.Uniform("uSize"), w, h);
+    if (im.environment_texture) {
+      im.environment_texture.BindUnit(0);
+    } else {
+      static const float black[3] = {0, 0, 0};
+      im.environment_texture = gl::Texture::Create2D(GL_RGB32F, 1, 1);
+      im.environment_texture.Upload2D(GL_RGB, GL_FLOAT, black);
+      im.environment_texture.BindUnit(0);
+    }
+    im.car_layer.BindImage(0, GL_READ_ONLY);
+    im.shadow_layer.BindImage(1, GL_READ_ONLY);
+    im.composite_layer.BindImage(2, GL_WRITE_ONLY);
+    im.background_layer.BindImage(3, GL_WRITE_ONLY);
+    cp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+    glMemoryBarrier(GL_ALL_BARRIER_BITS);
+    gl::Finish();
+    out.ms.composite = MsSince(t0);
+
+    // Read back (not timed as a stage: a player keeps the layers on the GPU).
+    const auto rgba = [&](const gl::Texture& t) { return t.Read<float>(GL_RGBA, GL_FLOAT, 4); };
+    const auto to_rgb = [&](const std::vector<float>& v, std::vector<float>* alpha) {
+      sphere::EquirectImage img(w, h);
+      if (alpha) alpha->resize(pixels);
+      for (std::size_t i = 0; i < pixels; ++i) {
+        for (int c = 0; c < 3; ++c) img.rgb[3 * i + c] = v[4 * i + c];
+        if (alpha) (*alpha)[i] = v[4 * i + 3];
+      }
+      return img;
+    };
+    out.car = to_rgb(rgba(im.car_layer), &out.car_alpha);
+    out.shadow = to_rgb(rgba(im.shadow_layer), &out.ground_mask);
+    out.composite = to_rgb(rgba(im.composite_layer), nullptr);
+    out.background = to_rgb(rgba(im.background_layer), nullptr);
+    const auto raw = im.counts.Read<glm::uvec4>(pixels);
+    counts.resize(pixels);
+    for (std::size_t i = 0; i < pixels; ++i) counts[i] = {raw[i].x, raw[i].y, raw[i].z, raw[i].w};
+  } else {
+    detail::GBuffer g;
+    g.width = w;
+    g.height = h;
+    g.position = im.g_position.Read<float>(GL_RGBA, GL_FLOAT, 4);
+    g.normal = im.g_normal.Read<float>(GL_RGBA, GL_FLOAT, 4);
+    g.base = im.g_base.Read<float>(GL_RGBA, GL_FLOAT, 4);
+    t0 = Clock::now();  // the shading stage alone, as on the GPU
+    detail::ReferenceInputs in;
+    in.gbuffer = &g;
+    in.camera = camera;
+    in.materials = &im.material_terms;
+    in.lighting = &im.lighting;
+    in.bins = im.bins.get();
+    in.grid = im.has_geometry ? im.cpu_grid.get() : nullptr;
+    in.options = options_;
+    in.ground_centre = ground_centre;
+    detail::ShadeReference(in, &out, &counts);
+    out.ms.shade = MsSince(t0);
+
+    t0 = Clock::now();
+    out.background = sphere::EquirectImage(w, h, 0.f);
+    out.composite = sphere::EquirectImage(w, h, 0.f);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * w + x;
+        glm::vec3 bg(0);
+        if (im.background_is_image) {
+          const float* b = im.background_image.at(x, y);
+          bg = glm::vec3(b[0], b[1], b[2]);
+        } else if (!im.environment.empty()) {
+          bg = SampleEquirect(im.environment, im.lighting.env_from_world * camera.Ray(x + 0.5, y + 0.5));
+        }
+        const float a = out.car_alpha[i];
+        for (int c = 0; c < 3; ++c) {
+          out.background.rgb[3 * i + c] = bg[c];
+          out.composite.rgb[3 * i + c] = (1 - a) * bg[c] * out.shadow.rgb[3 * i + c] + a * out.car.rgb[3 * i + c];
+        }
+      }
+    out.ms.composite = MsSince(t0);
+  }
+
+  // Counts.
+  RenderCounts& c = out.counts;
+  c.lighting_sgs = im.lighting.sg_count;
+  c.peaks = static_cast<int>(im.lighting.peaks.size());
+  long long lobes = 0, cones = 0, sgs = 0, triples = 0;
+  for (std::size_t i = 0; i < pixels; ++i) {
+    c.cones_total += counts[i].cones;
+    c.triples_total += counts[i].triples;
+    if (out.car_alpha[i] > 0) {
+      ++c.car_pixels;
+      lobes += counts[i].lobes;
+      cones += counts[i].cones;
+      sgs += counts[i].sgs;
+      triples += counts[i].triples;
+    } else if (counts[i].lobes > 0) {
+      ++c.ground_pixels;
+    }
+  }
+  if (c.car_pixels > 0) {
+    c.lobes_per_car_pixel = static_cast<double>(lobes) / c.car_pixels;
+    c.cones_per_car_pixel = static_cast<double>(cones) / c.car_pixels;
+    c.sgs_per_car_pixel = static_cast<double>(sgs) / c.car_pixels;
+    c.triples_per_car_pixel = static_cast<double>(triples) / c.car_pixels;
+  }
+  out.ms.total = MsSince(t_total);
+  return out;
+}
+
+}  // namespace odvr::render

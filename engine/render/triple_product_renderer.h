@@ -1,0 +1,173 @@
+#pragma once
+// The renderer of seed §4.5 (DESIGN.md §5): a glTF model shaded by the spherical-Gaussian triple
+// product of lighting × BRDF lobes × cone-traced visibility, casting a shadow on a ground plane
+// that acts as a shadow catcher, composited over a background.
+//
+// Stages per frame: voxelize the model (visibility), rasterize a G-buffer (position, shading
+// normal, base colour, metallic, roughness, coverage), shade (a compute pass, or the CPU
+// reference on the same G-buffer), composite.
+//
+// The estimator (per pixel; every SG of unit amplitude, μ folded into the weights):
+//   L_o = Σ_k w_k ⊙ [ Σ_j μ_j ∫G_k G_j · s_kj  +  Σ_p μ_p ∫G_k G_p · v_p ]
+// - k runs over the BRDF lobes (material/brdf.h: f·cos ≈ Σ w_k G_k), j over the lighting SGs
+//   the overlap bins list for lobe k (lighting/overlap_bins.h) plus the constant term, p over
+//   the peaks, each traced as one extra cone of its own half-value angle (v_p its visibility).
+// - s_kj is the visible share of the product P_kj = G_k G_j over the lobe's cones
+//   (visibility/cones.h: one cone for a sharp lobe, hexagonal rings for a broad one), each cone
+//   i an SG V_i of eq. 4.12 with traced visibility v_i:
+//     s_kj = Σ_i v_i ∫P_kj V_i / Σ_i ∫P_kj V_i.
+//   The seed's sum Σ_i v_i ∫G_k G_j V_i is this without the denominator; the cones' SGs do not
+//   sum to one over the lobe (they overlap and leave gaps), so without it an unoccluded pixel
+//   would not reproduce the unshadowed integral. With it, all v_i = 1 gives exactly
+//   μ_j ∫G_k G_j, and a light SG sharper than the cones takes the visibility of the cone(s) it
+//   falls in, so a small light casts a directional shadow through a broad lobe.
+// - Ground (y = 0, Lambertian, within ground_half_size of the model's centre): the same sums
+//   for the clamped-cosine lobe around +Y, shadowed over unshadowed, per channel: the shadow
+//   ratio. The model is voxelized alone, so the ground never shadows itself, and the car's
+//   cones do not see the ground: light from below the horizon comes from the environment's
+//   lower half (the real road in a street panorama), which stands in for the ground's bounce.
+// - Composite = background × shadow ratio, then the car layer (alpha = coverage) over it.
+//
+// Conventions: world frame +Y up, metres (DESIGN.md §3); the camera is OpenCV's (x right,
+// y down, z forward), square pixels, principal point at the image centre; every layer is
+// stored top row first. Lighting SG axes are in the lighting's own frame (an equirect frame's,
+// engine/sphere/equirect.h) and `world_from_lighting` rotates them into the world; the overlap
+// bins are queried in the lighting frame.
+#include <glm/mat3x3.hpp>
+#include <glm/mat4x4.hpp>
+#include <glm/vec3.hpp>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/lighting/sg_lighting.h"
+#include "engine/material/brdf.h"
+#include "engine/sphere/equirect_image.h"
+#include "engine/visibility/cones.h"
+#include "engine/visibility/voxel_grid.h"
+
+namespace odvr::scene {
+struct GltfScene;
+}
+
+namespace odvr::render {
+
+struct PinholeCamera {
+  glm::dvec3 position{0, 1.5, 6};
+  glm::dmat3 world_from_camera{1.0};  // columns: camera x (right), y (down), z (forward) in the world
+  double vfov_deg = 40;
+  int width = 640, height = 360;
+
+  // Looks from `position` at `target` with `up` above the image. Throws odvr::Error for a
+  // degenerate view (target at the position, up along the view) or a bad fov or size.
+  static PinholeCamera LookAt(const glm::dvec3& position, const glm::dvec3& target, double vfov_deg, int width,
+                              int height, const glm::dvec3& up = {0, 1, 0});
+  double focal_px() const;
+  // Unit world direction through continuous pixel coordinates (pixel centres at +0.5).
+  glm::dvec3 Ray(double x, double y) const;
+  void Check() const;  // throws odvr::Error naming the field
+};
+
+// Replaces the glTF materials whose name contains `material` (case-insensitive; empty: every
+// material) by the sum of `brdfs` (one or two terms).
+struct MaterialOverride {
+  std::string material;
+  std::vector<material::Brdf> brdfs;
+};
+
+// Parses "[NAME=]TERM[+TERM]" with TERM one of
+//   lambert:R,G,B | phong:R,G,B,N | blinn:R,G,B,S | ward:R,G,B,ALPHA | ct:F0R,F0G,F0B,ALPHA[,beckmann]
+//   | mr:R,G,B,METALLIC,ROUGHNESS | KD,KS,N (Lambertian kd grey + Phong ks grey, exponent N).
+// Throws odvr::UsageError naming the text and what is wrong.
+MaterialOverride ParseMaterialOverride(const std::string& text);
+
+struct RenderOptions {
+  int lighting_levels = 5;       // HEALPix levels 0..N−1 of the lighting that are used (1..6)
+  int cone_rings = 1;            // per broad lobe: 0 → 1 cone, 1 → 7, 2 → 19, 3 → 37
+  int voxel_resolution = 128;    // 64..512, a power of two
+  bool peak_cones = true;        // each peak its own visibility cone (sharp sun shadows)
+  bool ground = true;            // the shadow catcher
+  double ground_half_size = 30;  // metres around the model's centre (Cycles' 60 m catcher)
+  std::vector<MaterialOverride> materials;
+  visibility::ConeSubsampleOptions cones;  // `rings` is taken from cone_rings
+  visibility::ConeTraceOptions trace;
+  double overlap_min_retention = 1.0 / 13;  // overlap bins' depth rule
+  // Car cones start this many level-0 voxels off the surface along its normal (beside
+  // trace.start_offset_voxels along the cone): a conservative voxelization marks the surface's
+  // own voxels and their neighbours, and a wide cone near the horizon would otherwise see them
+  // (a Lambertian sphere under a constant sky keeps 77 % of its light at 0 voxels, 97.5 % at 1,
+  // 99.5 % at 2, at 64³).
+  double surface_offset_voxels = 2.0;
+  // How BRDFs become lobes. The GPU pass implements the defaults only (isotropic warp, cosine at
+  // the lobe axis; Render throws otherwise); the CPU reference takes any, to measure the others.
+  material::LobeOptions lobes;
+  void Check() const;  // throws odvr::Error naming the field
+};
+
+enum class ShadeDevice { kGpu, kCpu };
+
+struct RenderCounts {
+  int lighting_sgs = 0;  // SGs of the model used (constant, kept SRBFs, peaks)
+  int peaks = 0;         // peak SGs (each one extra cone when peak_cones)
+  int car_pixels = 0;
+  int ground_pixels = 0;  // ground pixels where the car occludes something
+  double lobes_per_car_pixel = 0;
+  double cones_per_car_pixel = 0;    // traced, lobe cones and peak cones
+  double sgs_per_car_pixel = 0;      // lighting SGs touched, summed over the lobes
+  double triples_per_car_pixel = 0;  // lobe × cone × SG integrals evaluated (0 where unoccluded)
+  long long cones_total = 0;         // over every pixel, ground included
+  long long triples_total = 0;
+};
+
+struct RenderTimings {  // milliseconds, measured after glFinish
+  double voxelize = 0, gbuffer = 0, shade = 0, composite = 0, total = 0;
+};
+
+struct RenderResult {
+  sphere::EquirectImage car;         // linear radiance where covered, 0 elsewhere
+  std::vector<float> car_alpha;      // coverage, width × height
+  sphere::EquirectImage shadow;      // per-channel ratio, 1 where there is no shadow
+  std::vector<float> ground_mask;    // 1 on ground-plane pixels
+  sphere::EquirectImage background;  // what the car is composited over
+  sphere::EquirectImage composite;
+  RenderCounts counts;
+  RenderTimings ms;
+};
+
+class TripleProductRenderer {
+ public:
+  // The brightest peaks get a cone each (render_shade.comp's kMaxPeaks); fainter ones are
+  // shadowed through the lobes' cones like every other SG.
+  static constexpr int kMaxPeakCones = 8;
+  static constexpr int kTermsPerMaterial = 2;
+
+  // `model` placed by `world_from_model` (a rigid or scaled transform; the ground is y = 0 of the
+  // world). Needs a current OpenGL 4.5 context; uploads the meshes and textures. Throws
+  // odvr::Error for bad options or an override the renderer cannot shade (anisotropic Ward).
+  TripleProductRenderer(const scene::GltfScene& model, const glm::dmat4& world_from_model, RenderOptions options);
+  ~TripleProductRenderer();
+  TripleProductRenderer(const TripleProductRenderer&) = delete;
+  TripleProductRenderer& operator=(const TripleProductRenderer&) = delete;
+
+  // The lighting (levels beyond options.lighting_levels are ignored).
+  void SetLighting(const lighting::SgLighting& lighting, const glm::dmat3& world_from_lighting = glm::dmat3(1.0));
+  // The background: an equirect frame in the lighting's frame (rotated by world_from_lighting),
+  // or an image of exactly the output size.
+  void SetEnvironment(const sphere::EquirectImage& equirect);
+  void SetBackgroundImage(const sphere::EquirectImage& image);
+
+  RenderResult Render(const PinholeCamera& camera, ShadeDevice device = ShadeDevice::kGpu);
+
+  const RenderOptions& options() const { return options_; }
+  // The model's triangles in the world (three vertices each), and the grid that holds them.
+  const std::vector<glm::vec3>& world_triangles() const;
+  const visibility::VoxelGridSpec& voxel_spec() const;
+  int peaks_without_cone() const;  // beyond kMaxPeakCones
+
+ private:
+  struct Impl;
+  RenderOptions options_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace odvr::render

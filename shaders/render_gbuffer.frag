@@ -1,0 +1,71 @@
+#version 450
+// G-buffer of the triple-product renderer: world position and material index + 1 (0 = empty),
+// shading normal (normal map applied when the material has one and the mesh has tangents) and
+// perceptual roughness, linear base colour and metallic.
+in vec3 vPosition;
+in vec3 vNormal;
+in vec2 vUv0;
+in vec2 vUv1;
+in vec4 vTangent;
+
+layout(location = 0) out vec4 outPosition;
+layout(location = 1) out vec4 outNormal;
+layout(location = 2) out vec4 outBase;
+
+layout(binding = 0) uniform sampler2D uBaseColorTex;  // sRGB texture format: sampled linear
+layout(binding = 1) uniform sampler2D uMetalRoughTex;  // G roughness, B metallic
+layout(binding = 2) uniform sampler2D uNormalTex;
+
+uniform float uMaterialId;  // material index + 1
+uniform vec4 uBaseColorFactor;
+uniform float uMetallicFactor;
+uniform float uRoughnessFactor;
+uniform float uNormalScale;
+uniform float uAlphaCutoff;  // < 0: opaque
+uniform vec3 uCameraPosition;
+// Per texture (base, metal-rough, normal): enabled, texcoord set, KHR_texture_transform.
+uniform ivec2 uTexUse[3];     // (enabled, texcoord)
+uniform vec4 uTexOffsetScale[3];  // offset xy, scale zw
+uniform float uTexRotation[3];
+
+vec2 texUv(int k) {
+  vec2 uv = uTexUse[k].y == 1 ? vUv1 : vUv0;
+  uv *= uTexOffsetScale[k].zw;
+  float c = cos(uTexRotation[k]), s = sin(uTexRotation[k]);
+  // glTF's KHR_texture_transform rotation matrix (counter-clockwise in UV space).
+  uv = vec2(c * uv.x + s * uv.y, -s * uv.x + c * uv.y);
+  return uv + uTexOffsetScale[k].xy;
+}
+
+void main() {
+  vec4 base = uBaseColorFactor;
+  if (uTexUse[0].x != 0) base *= texture(uBaseColorTex, texUv(0));
+  if (uAlphaCutoff >= 0.0 && base.a < uAlphaCutoff) discard;
+  float roughness = uRoughnessFactor, metallic = uMetallicFactor;
+  if (uTexUse[1].x != 0) {
+    vec4 mr = texture(uMetalRoughTex, texUv(1));
+    roughness *= mr.g;
+    metallic *= mr.b;
+  }
+  vec3 n = vNormal;
+  // A degenerate interpolated normal falls back to the face's own.
+  vec3 face = cross(dFdx(vPosition), dFdy(vPosition));
+  if (dot(face, uCameraPosition - vPosition) < 0.0) face = -face;
+  if (!(dot(n, n) > 1e-12)) n = face;
+  if (!(dot(n, n) > 1e-20)) n = vec3(0, 1, 0);
+  n = normalize(n);
+  if (uTexUse[2].x != 0 && dot(vTangent.xyz, vTangent.xyz) > 1e-12) {
+    vec3 t = normalize(vTangent.xyz - dot(vTangent.xyz, n) * n);
+    vec3 b = cross(n, t) * (vTangent.w < 0.0 ? -1.0 : 1.0);
+    vec3 tn = texture(uNormalTex, texUv(2)).xyz * 2.0 - 1.0;
+    tn.xy *= uNormalScale;
+    vec3 m = tn.x * t + tn.y * b + tn.z * n;
+    if (dot(m, m) > 1e-12) n = normalize(m);
+  }
+  // Seen from behind (a double-sided panel, or a back face that won the depth test): shade the
+  // side that faces the camera.
+  if (dot(n, uCameraPosition - vPosition) < 0.0 && !gl_FrontFacing) n = -n;
+  outPosition = vec4(vPosition, uMaterialId);
+  outNormal = vec4(n, roughness);
+  outBase = vec4(base.rgb, metallic);
+}

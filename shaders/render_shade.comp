@@ -1,0 +1,292 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// The shading stage of TripleProductRenderer (engine/render/triple_product_renderer.h derives
+// the estimator): per car pixel, Σ over BRDF lobes × visibility cones × the lighting SGs that
+// the overlap bins list for the lobe, of the triple-product integral; one extra cone per peak.
+// Per ground pixel (shadow catcher) the ratio of the Lambertian ground's shadowed lighting to
+// its unshadowed lighting. The CPU reference (triple_product_reference.cpp) is the same loop in
+// double.
+#include "sg_integral.glsl"
+#include "cone_trace.glsl"
+#include "brdf_lobes.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(rgba32f, binding = 0) readonly uniform image2D uGPosition;  // xyz, material index + 1 (0: empty)
+layout(rgba32f, binding = 1) readonly uniform image2D uGNormal;    // xyz, roughness
+layout(rgba32f, binding = 2) readonly uniform image2D uGBase;      // rgb, metallic
+layout(rgba32f, binding = 3) writeonly uniform image2D uCarLayer;  // rgb radiance, coverage
+layout(rgba32f, binding = 4) writeonly uniform image2D uShadowLayer;  // rgb ratio, 1 on ground pixels
+
+struct LightSg {
+  vec4 axis_lambda;  // world axis, λ
+  vec4 amplitude;    // rgb
+};
+layout(std430, binding = 0) readonly buffer Srbfs { LightSg srbfs[]; };  // by global SRBF index
+layout(std430, binding = 1) readonly buffer Peaks { LightSg peaks[]; };
+layout(std430, binding = 2) readonly buffer BinLevels { vec4 binLevels[]; };  // λ_b, n, first begin entry
+layout(std430, binding = 3) readonly buffer BinBegin { int binBegin[]; };    // absolute offsets into binSrbfs
+layout(std430, binding = 4) readonly buffer BinSrbfs { int binSrbfs[]; };
+struct MaterialTerm {
+  ivec4 type;
+  vec4 color;
+  vec4 params;
+};
+layout(std430, binding = 5) readonly buffer Materials { MaterialTerm terms[]; };
+layout(std430, binding = 6) writeonly buffer Counts { uvec4 counts[]; };  // lobes, cones, triple products, SGs
+
+uniform ivec2 uSize;
+uniform vec3 uCameraPosition;
+uniform mat3 uWorldFromCamera;  // columns: camera x (right), y (down), z (forward)
+uniform float uFocal;           // pixels
+uniform mat3 uEnvFromWorld;     // the overlap bins live in the lighting's own frame
+uniform vec3 uConstant;
+uniform int uPeakCount;
+uniform int uPeakCones;  // 1: each peak its own cone; 0: peaks shadowed by the lobes' cones
+uniform int uBinLevelCount;
+uniform float uSingleConeMaxHalfAngle;
+uniform float uConeCoverage;
+uniform float uMaxConeHalfAngle;
+uniform int uTermsPerMaterial;
+uniform int uMaterialCount;
+uniform float uSurfaceOffset;  // metres along the normal where the car's cones start
+uniform int uGround;
+uniform vec2 uGroundCenter;  // xz
+uniform float uGroundHalfSize;
+
+// Compile-time bounds, so that every loop over cones and peaks unrolls and their arrays stay in
+// registers: indexed by a loop variable, an array becomes a chain of selects on llvmpipe (70x
+// slower, measured). The renderer compiles one variant per ring count.
+#ifndef CONE_RINGS
+#define CONE_RINGS 1
+#endif
+const int kMaxCones = 1 + 3 * CONE_RINGS * (CONE_RINGS + 1);
+const int kMaxPeaks = 8;  // TripleProductRenderer::kMaxPeakCones; fainter peaks use the lobes' cones
+const float kTwoPi = 6.28318530717958647692;
+
+float halfValueAngle(float lambda) {
+  // e^{λ(cos α − 1)} = 1/2; below λ = ln 2 / 2 the SG never falls to 1/2: α = π.
+  return lambda > 0.34657359 ? acos(clamp(1.0 + log(0.5) / lambda, -1.0, 1.0)) : kSgPi;
+}
+
+float lambdaForHalfValueAngle(float alpha) { return log(0.5) / (cos(alpha) - 1.0); }
+
+float capHalfAngleHolding(float lambda, float fraction) {
+  if (lambda < 1e-3) return acos(1.0 - 2.0 * fraction);
+  float c = 1.0 + log(1.0 + fraction * (exp(-2.0 * lambda) - 1.0)) / lambda;
+  return acos(clamp(c, -1.0, 1.0));
+}
+
+// The cones of one lobe, as visibility::ConesForLobe packs them (its weights are not needed:
+// the estimator below weights each cone per lighting SG).
+struct ConeSet {
+  vec3 axis[kMaxCones];
+  float visibility[kMaxCones];
+  int count;
+  float lambda;  // of every cone's SG (eq. 4.12)
+  bool all_visible;
+};
+
+void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
+  float half_value = halfValueAngle(lambda);
+  if (half_value <= uSingleConeMaxHalfAngle || CONE_RINGS == 0) {
+    float a = min(half_value, uMaxConeHalfAngle);
+    set.count = 1;
+    set.axis[0] = axis;
+    set.lambda = lambdaForHalfValueAngle(a);
+    set.visibility[0] = traceCone(p, axis, a);
+  } else {
+    float cap = capHalfAngleHolding(lambda, uConeCoverage);
+    float beta = min(cap / float(2 * CONE_RINGS + 1), uMaxConeHalfAngle);
+    vec3 helper = abs(axis.z) < 0.9 ? vec3(0, 0, 1) : vec3(1, 0, 0);
+    vec3 e1 = normalize(cross(helper, axis)), e2 = cross(axis, e1);
+    set.count = 0;
+    set.axis[set.count++] = axis;
+    for (int r = 1; r <= CONE_RINGS; ++r) {
+      float theta = min(2.0 * float(r) * beta, kSgPi);
+      int count = 6 * r;
+      float phase = (r % 2 == 0) ? kSgPi / float(count) : 0.0;
+      for (int k = 0; k < count; ++k) {
+        float phi = phase + kTwoPi * float(k) / float(count);
+        set.axis[set.count++] = normalize(cos(theta) * axis + sin(theta) * (cos(phi) * e1 + sin(phi) * e2));
+      }
+    }
+    set.lambda = lambdaForHalfValueAngle(beta);
+    for (int i = 0; i < kMaxCones; ++i) set.visibility[i] = traceCone(p, set.axis[i], beta);
+  }
+  set.all_visible = true;
+  for (int i = 0; i < kMaxCones; ++i)
+    if (i < set.count) set.all_visible = set.all_visible && set.visibility[i] >= 1.0;
+}
+
+// The visible share of ∫ G_lobe G_light over the cones: Σ v_i ∫P V_i / Σ ∫P V_i with
+// P = G_lobe G_light and V_i the cone SGs. The exponents are rescaled on the fly (as an online
+// softmax) so that sharp products far from every cone do not underflow to 0/0.
+float visibleShare(SgProduct prod, in ConeSet set) {
+  float num = 0.0, den = 0.0, top = -3.0e38;
+  for (int i = 0; i < kMaxCones; ++i) {
+    if (i >= set.count) continue;
+    SgProduct q = sgProduct(prod.axis, prod.lambda, set.axis[i], set.lambda);
+    if (q.log_amplitude > top) {
+      float s = exp(top - q.log_amplitude);
+      num *= s;
+      den *= s;
+      top = q.log_amplitude;
+    }
+    float w = exp(q.log_amplitude - top) * sgShape(q.lambda);
+    num += w * set.visibility[i];
+    den += w;
+  }
+  return den > 0.0 ? num / den : set.visibility[0];
+}
+
+int binLevelFor(float lambda) {
+  int k = 0;
+  while (k + 1 < uBinLevelCount && binLevels[k + 1].x <= lambda) ++k;
+  return k;
+}
+
+ivec2 overlapRange(vec3 axis_world, float lambda) {
+  if (uBinLevelCount == 0) return ivec2(0, 0);
+  vec4 level = binLevels[binLevelFor(lambda)];
+  vec3 d = normalize(uEnvFromWorld * axis_world);
+  int n = int(level.y);
+  float theta = acos(clamp(d.y, -1.0, 1.0));
+  float phi = atan(-d.z, d.x);
+  if (phi < 0.0) phi += kTwoPi;
+  int t = clamp(int(floor(theta * float(n) / kSgPi + 0.5)), 0, n);
+  int p = int(floor(phi * float(n) / kSgPi + 0.5)) % (2 * n);
+  int b = int(level.z) + t * 2 * n + p;
+  return ivec2(binBegin[b], binBegin[b + 1]);
+}
+
+// One lighting SG's contribution to a lobe: unshadowed ∫ G_lobe G_light (unit amplitudes) times
+// the visible share.
+void addLight(vec3 lobe_axis, float lobe_lambda, vec3 axis, float lambda, vec3 amplitude, in ConeSet set,
+              inout vec3 shaded, inout vec3 unshadowed, inout uvec4 count) {
+  SgProduct prod = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
+  float full = kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda);
+  float share = 1.0;
+  if (!set.all_visible) {
+    share = visibleShare(prod, set);
+    count.z += uint(set.count);
+  }
+  shaded += amplitude * (full * share);
+  unshadowed += amplitude * full;
+  count.w += 1u;
+}
+
+// Σ over the lobe's lighting SGs: the constant, the overlapping SRBFs, and the peaks when they
+// have no cone of their own.
+void shadeLobe(vec3 lobe_axis, float lobe_lambda, in ConeSet set, inout vec3 shaded, inout vec3 unshadowed,
+               inout uvec4 count) {
+  if (uConstant != vec3(0.0))
+    addLight(lobe_axis, lobe_lambda, vec3(0, 1, 0), 0.0, uConstant, set, shaded, unshadowed, count);
+  ivec2 range = overlapRange(lobe_axis, lobe_lambda);
+  for (int k = range.x; k < range.y; ++k) {
+    LightSg g = srbfs[binSrbfs[k]];
+    if (g.amplitude.xyz == vec3(0.0)) continue;
+    addLight(lobe_axis, lobe_lambda, g.axis_lambda.xyz, g.axis_lambda.w, g.amplitude.xyz, set, shaded, unshadowed,
+             count);
+  }
+  for (int k = uPeakCones != 0 ? kMaxPeaks : 0; k < uPeakCount; ++k)
+      addLight(lobe_axis, lobe_lambda, peaks[k].axis_lambda.xyz, peaks[k].axis_lambda.w, peaks[k].amplitude.xyz, set,
+               shaded, unshadowed, count);
+}
+
+// Peaks with their own cones: Σ_p μ_p ∫ G_lobe G_p · v_p. A sharp peak is a directional light
+// for the clamped-cosine lobe: its SG fit is 17 % high at normal incidence and 11–19 % low at
+// 45–70°, where a sun lights most surfaces, so the exact max(0, n·c_p) ∫G_p replaces it there
+// (the lobe's weight holds the fit's amplitude, hence the division).
+const float kSharpPeakLambda = 50.0;
+
+float peakIntegral(vec3 lobe_axis, float lobe_lambda, bool cosine, vec3 axis, float lambda) {
+  if (cosine && lambda >= kSharpPeakLambda)
+    return max(dot(lobe_axis, axis), 0.0) * sgIntegral(lambda) / kCosineSgAmplitude;
+  return sgIntegral2(lobe_axis, lobe_lambda, axis, lambda);
+}
+
+void shadePeaks(vec3 lobe_axis, float lobe_lambda, bool cosine, in float peak_visibility[kMaxPeaks],
+                inout vec3 shaded, inout vec3 unshadowed) {
+  if (uPeakCones == 0) return;
+  for (int k = 0; k < kMaxPeaks; ++k) {
+    if (k >= uPeakCount) continue;
+    float full = peakIntegral(lobe_axis, lobe_lambda, cosine, peaks[k].axis_lambda.xyz, peaks[k].axis_lambda.w);
+    shaded += peaks[k].amplitude.xyz * (full * peak_visibility[k]);
+    unshadowed += peaks[k].amplitude.xyz * full;
+  }
+}
+
+void tracePeakCones(vec3 p, out float peak_visibility[kMaxPeaks], inout uvec4 count) {
+  for (int k = 0; k < kMaxPeaks; ++k) peak_visibility[k] = 1.0;
+  if (uPeakCones == 0) return;
+  for (int k = 0; k < kMaxPeaks; ++k) {
+    if (k >= uPeakCount) continue;
+    float a = min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle);
+    peak_visibility[k] = traceCone(p, peaks[k].axis_lambda.xyz, a);
+    count.y += 1u;
+  }
+}
+
+void main() {
+  ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+  if (pixel.x >= uSize.x || pixel.y >= uSize.y) return;
+  uint index = uint(pixel.y * uSize.x + pixel.x);
+  uvec4 count = uvec4(0);
+  vec4 gp = imageLoad(uGPosition, pixel);
+  vec4 car = vec4(0.0);
+  vec4 shadow = vec4(1.0, 1.0, 1.0, 0.0);
+  ConeSet set;
+  float peak_visibility[kMaxPeaks];
+  int material = int(gp.w + 0.5) - 1;
+  if (material >= 0 && material < uMaterialCount) {
+    vec4 gn = imageLoad(uGNormal, pixel);
+    vec4 gb = imageLoad(uGBase, pixel);
+    vec3 p = gp.xyz, n = normalize(gn.xyz);
+    vec3 wo = bendView(n, normalize(uCameraPosition - p));
+    LobeList list;
+    list.count = 0;
+    for (int k = 0; k < uTermsPerMaterial; ++k) {
+      MaterialTerm term = terms[material * uTermsPerMaterial + k];
+      appendLobes(list, term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wo);
+    }
+    vec3 origin = p + uSurfaceOffset * n;
+    tracePeakCones(origin, peak_visibility, count);
+    vec3 radiance = vec3(0.0);
+    for (int l = 0; l < list.count; ++l) {
+      Lobe lobe = list.lobes[l];
+      traceLobeCones(lobe.axis, lobe.lambda, origin, set);
+      vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
+      shadeLobe(lobe.axis, lobe.lambda, set, shaded, unshadowed, count);
+      shadePeaks(lobe.axis, lobe.lambda, lobe.cosine, peak_visibility, shaded, unshadowed);
+      radiance += lobe.weight * shaded;
+      count.x += 1u;
+      count.y += uint(set.count);
+    }
+    car = vec4(radiance, 1.0);
+  } else if (uGround != 0) {
+    vec3 dir = normalize(uWorldFromCamera * vec3((vec2(pixel) + 0.5 - 0.5 * vec2(uSize)) / uFocal, 1.0));
+    float t = dir.y < 0.0 ? -uCameraPosition.y / dir.y : -1.0;
+    vec3 p = uCameraPosition + t * dir;
+    if (t > 0.0 && abs(p.x - uGroundCenter.x) <= uGroundHalfSize && abs(p.z - uGroundCenter.y) <= uGroundHalfSize) {
+      p.y = 0.0;
+      const vec3 up = vec3(0, 1, 0);
+      traceLobeCones(up, kCosineSgLambda, p, set);
+      tracePeakCones(p, peak_visibility, count);
+      count.y += uint(set.count);
+      bool lit = set.all_visible;
+      for (int k = 0; k < kMaxPeaks; ++k) lit = lit && peak_visibility[k] >= 1.0;
+      shadow.a = 1.0;
+      if (!lit) {
+        vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
+        shadeLobe(up, kCosineSgLambda, set, shaded, unshadowed, count);
+        shadePeaks(up, kCosineSgLambda, true, peak_visibility, shaded, unshadowed);
+        count.x += 1u;
+        for (int c = 0; c < 3; ++c) shadow[c] = unshadowed[c] > 0.0 ? clamp(shaded[c] / unshadowed[c], 0.0, 1.0) : 1.0;
+      }
+    }
+  }
+  imageStore(uCarLayer, pixel, car);
+  imageStore(uShadowLayer, pixel, shadow);
+  counts[index] = count;
+}
