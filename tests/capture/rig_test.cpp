@@ -11,11 +11,13 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/core/error.h"
+#include "tests/error_message.h"
 
 namespace odvr::capture {
 namespace {
 
 namespace fs = std::filesystem;
+using odvr::testing::ErrorMessageOf;
 
 const fs::path kStreetRig = fs::path(ODVR_SHARED_DIR) / "data/street_a/rig.json";
 
@@ -25,17 +27,6 @@ nlohmann::json StreetRigJson() {
 }
 
 // The message of the odvr::Error `f` throws; fails the test when it throws nothing.
-template <class F>
-std::string ErrorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no odvr::Error thrown";
-  return "";
-}
-
 // A scratch folder per test; the suite must be named Rig (ctest filters on it), so no fixture.
 struct TempDir {
   TempDir() {
@@ -52,7 +43,7 @@ struct TempDir {
   // Loading `text` fails with one line that names the file and contains `needle`.
   void ExpectError(const std::string& text, const std::string& needle) const {
     const fs::path p = Write("bad.json", text);
-    const std::string msg = ErrorOf([&] { LoadRig(p); });
+    const std::string msg = ErrorMessageOf([&] { LoadRig(p); });
     EXPECT_EQ(msg.rfind(p.string() + ": ", 0), 0u) << msg;
     EXPECT_NE(msg.find(needle), std::string::npos) << msg;
     EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
@@ -194,14 +185,14 @@ TEST(Rig, TheStreetRigWithACameraRemovedIsRejected) {
   auto j = StreetRigJson();
   j["cameras"].erase(3);
   const fs::path p = t.Write("five.json", j.dump());
-  const std::string msg = ErrorOf([&] { LoadRig(p); });
+  const std::string msg = ErrorMessageOf([&] { LoadRig(p); });
   EXPECT_NE(msg.find(p.string()), std::string::npos);
   EXPECT_NE(msg.find("camera 3 is missing"), std::string::npos) << msg;
 }
 
 TEST(Rig, MissingFileIsAnError) {
   const TempDir t;
-  const std::string msg = ErrorOf([&] { LoadRig(t.dir / "nope.json"); });
+  const std::string msg = ErrorMessageOf([&] { LoadRig(t.dir / "nope.json"); });
   EXPECT_NE(msg.find("nope.json: no such rig file"), std::string::npos) << msg;
 }
 
