@@ -5,6 +5,8 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <functional>
 
 #include "capture/stitcher_gpu.h"
 #include "engine/core/error.h"
@@ -19,14 +21,6 @@ using Clock = std::chrono::steady_clock;
 
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
-// Weight of a sample at (u, v) of a w x h image: a tent in each direction, 1 at the centre and 0
-// on the image's outer edge, so a camera fades out before its content ends (no visible seam).
-float FeatherWeight(double u, double v, int w, int h) {
-  const double tu = std::min(u + 0.5, w - 0.5 - u) / (0.5 * w);
-  const double tv = std::min(v + 0.5, h - 0.5 - v) / (0.5 * h);
-  return static_cast<float>(std::clamp(tu, 0.0, 1.0) * std::clamp(tv, 0.0, 1.0));
-}
-
 const std::array<float, 256>& SrgbTable() {
   static const std::array<float, 256> table = [] {
     std::array<float, 256> t{};
@@ -36,33 +30,51 @@ const std::array<float, 256>& SrgbTable() {
   return table;
 }
 
-// A camera frame linearized to float RGB (the order the output uses).
-struct LinearImage {
-  int width = 0, height = 0;
-  std::vector<float> rgb;
-
-  // Bilinear at OpenCV pixel coordinates (centres at integers), edges clamped; the GPU shader
-  // stitch_warp.comp computes the same expression.
-  void Sample(float u, float v, float* out) const {
-    const float fu = std::floor(u), fv = std::floor(v);
-    const float au = u - fu, av = v - fv;
-    const int x0 = std::clamp(static_cast<int>(fu), 0, width - 1),
-              x1 = std::clamp(static_cast<int>(fu) + 1, 0, width - 1);
-    const int y0 = std::clamp(static_cast<int>(fv), 0, height - 1),
-              y1 = std::clamp(static_cast<int>(fv) + 1, 0, height - 1);
-    const float* p00 = &rgb[3 * (static_cast<std::size_t>(y0) * width + x0)];
-    const float* p10 = &rgb[3 * (static_cast<std::size_t>(y0) * width + x1)];
-    const float* p01 = &rgb[3 * (static_cast<std::size_t>(y1) * width + x0)];
-    const float* p11 = &rgb[3 * (static_cast<std::size_t>(y1) * width + x1)];
-    for (int k = 0; k < 3; ++k) {
-      const float top = p00[k] + au * (p10[k] - p00[k]);
-      const float bottom = p01[k] + au * (p11[k] - p01[k]);
-      out[k] = top + av * (bottom - top);
-    }
-  }
+// Four floats as one SIMD value (SSE on x86-64, NEON on ARM, through GCC/Clang vector
+// extensions): one pixel's RGB plus a spare lane, so a bilinear tap is one load.
+using V4 = float __attribute__((vector_size(16)));
+struct alignas(16) Px {
+  float c[4];
 };
+inline V4 Load(const Px* p) {
+  V4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void Store(Px* p, V4 v) { std::memcpy(p, &v, sizeof v); }
+
+// One lookup-table entry prepared for the CPU: the camera (top 5 bits) and the index of the
+// top-left bilinear tap in the concatenated camera pixels (low 27 bits), the bilinear fractions
+// and the feather weight. A tap clamped at the image edge (OpenCV pixel -0.5 .. 0 or W - 1 ..
+// W - 0.5) gets fraction 0, so its neighbour beyond the edge is read with weight 0 and the
+// sample equals the clamped one exactly, with no branch per pixel.
+struct Tap {
+  std::uint32_t packed;
+  float au, av, weight;
+};
+constexpr int kTapIndexBits = 27;
+constexpr std::uint32_t kTapIndexMask = (1u << kTapIndexBits) - 1;
+
+// Bilinear sample at a tap; the GPU's stitch_warp.comp evaluates the same expression.
+inline V4 SampleTap(const Px* pixels, const Tap& t, std::uint32_t stride) {
+  const Px* p = pixels + (t.packed & kTapIndexMask);
+  const V4 p00 = Load(p), p10 = Load(p + 1), p01 = Load(p + stride), p11 = Load(p + stride + 1);
+  const V4 top = p00 + t.au * (p10 - p00);
+  const V4 bottom = p01 + t.au * (p11 - p01);
+  return top + t.av * (bottom - top);
+}
+
+// Size of a camera image at `level` (0 or 1): the half-resolution level rounds up, its last
+// column (row) averaging the image's last column (row) with itself.
+inline int LevelSize(int full, int level) { return level ? (full + 1) / 2 : full; }
 
 }  // namespace
+
+float FeatherWeight(double u, double v, int width, int height, double margin) {
+  const double tu = std::min(u + 0.5, width - 0.5 - u) / (0.5 * width * margin);
+  const double tv = std::min(v + 0.5, height - 0.5 - v) / (0.5 * height * margin);
+  return static_cast<float>(std::clamp(tu, 0.0, 1.0) * std::clamp(tv, 0.0, 1.0));
+}
 
 void StitchOptions::Check() const {
   if (width < 4 || height < 2 || width > 32768 || height > 16384)
@@ -75,6 +87,7 @@ void StitchOptions::Check() const {
   if (gain_sample_step < 1) throw UsageError("gain_sample_step", "must be at least 1");
   if (!(black_level >= 0)) throw UsageError("black_level", "must not be negative");
   if (threads < 0) throw UsageError("threads", "must not be negative");
+  if (!(feather_margin > 0 && feather_margin <= 1)) throw UsageError("feather_margin", "must be in (0, 1]");
 }
 
 StitchLut BuildStitchLut(const Rig& rig, const StitchOptions& options) {
@@ -118,7 +131,7 @@ StitchLut BuildStitchLut(const Rig& rig, const StitchOptions& options) {
               const CameraModel& m = rig.cameras[static_cast<std::size_t>(c)].model;
               Eigen::Vector2d px;
               if (!m.Project(p_cam, &px) || !m.InImage(px)) continue;
-              const float w = FeatherWeight(px.x(), px.y(), m.width(), m.height());
+              const float w = FeatherWeight(px.x(), px.y(), m.width(), m.height(), options.feather_margin);
               if (w <= 0) continue;
               out.push_back({static_cast<float>(px.x()), static_cast<float>(px.y()), w, static_cast<std::uint32_t>(c)});
               ++n;
@@ -140,6 +153,16 @@ StitchLut BuildStitchLut(const Rig& rig, const StitchOptions& options) {
       const std::size_t p = static_cast<std::size_t>(row) * lut.width + col;
       if (counts[p] >= 2) lut.gain_pixels.push_back(static_cast<std::uint32_t>(p));
     }
+  // The output's pixel pitch against each camera's at its centre (radians per pixel).
+  const double output_pitch = 2 * sphere::kPi / lut.width;
+  for (const auto& c : rig.cameras) {
+    const CameraModel& m = c.model;
+    const double pitch =
+        m.type() == CameraModelType::kEquirectangular ? 2 * sphere::kPi / m.width() : 1 / std::max(m.fx(), m.fy());
+    const bool half = options.prefilter == StitchOptions::Prefilter::kOn ||
+                      (options.prefilter == StitchOptions::Prefilter::kAuto && output_pitch > pitch);
+    lut.level.push_back(half ? 1 : 0);
+  }
   return lut;
 }
 
@@ -192,108 +215,167 @@ std::vector<double> SolveGains(const std::vector<std::vector<double>>& counts,
 
 namespace {
 
-// One pull-push pyramid level: premultiplied RGB and coverage per pixel (4 floats).
+// One pull-push pyramid level: premultiplied RGB and coverage per pixel.
 struct Level {
   int width = 0, height = 0;
-  std::vector<float> data;
-  float* at(int x, int y) { return &data[4 * (static_cast<std::size_t>(y) * width + x)]; }
-  const float* at(int x, int y) const { return &data[4 * (static_cast<std::size_t>(y) * width + x)]; }
+  std::vector<Px> data;
+  void Resize(int w, int h) {
+    width = w;
+    height = h;
+    data.resize(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+  }
+  Px* row(int y) { return &data[static_cast<std::size_t>(y) * width]; }
+  const Px* row(int y) const { return &data[static_cast<std::size_t>(y) * width]; }
 };
 
 // The coarse level's colour at fine pixel (x, y): bilinear, wrapping in longitude and clamped in
 // latitude. shaders/stitch_push.comp evaluates the same expression.
-void Upsample(const Level& coarse, int x, int y, float* out) {
+V4 Upsample(const Level& coarse, int x, int y) {
   const float sx = (x + 0.5f) * 0.5f - 0.5f, sy = (y + 0.5f) * 0.5f - 0.5f;
   const float fx = std::floor(sx), fy = std::floor(sy);
   const float ax = sx - fx, ay = sy - fy;
   const int w = coarse.width, h = coarse.height;
-  const int x0 = ((static_cast<int>(fx) % w) + w) % w, x1 = (x0 + 1) % w;
+  // fx >= -1 and x < 2 w: the wrap needs no integer division (per pixel, it would dominate).
+  const int xi = static_cast<int>(fx);
+  const int x0 = xi < 0 ? xi + w : (xi >= w ? xi - w : xi), x1 = x0 + 1 == w ? 0 : x0 + 1;
   const int y0 = std::clamp(static_cast<int>(fy), 0, h - 1), y1 = std::clamp(static_cast<int>(fy) + 1, 0, h - 1);
-  for (int k = 0; k < 3; ++k) {
-    const float top = coarse.at(x0, y0)[k] + ax * (coarse.at(x1, y0)[k] - coarse.at(x0, y0)[k]);
-    const float bottom = coarse.at(x0, y1)[k] + ax * (coarse.at(x1, y1)[k] - coarse.at(x0, y1)[k]);
-    out[k] = top + ay * (bottom - top);
+  const V4 c00 = Load(coarse.row(y0) + x0), c10 = Load(coarse.row(y0) + x1);
+  const V4 c01 = Load(coarse.row(y1) + x0), c11 = Load(coarse.row(y1) + x1);
+  const V4 top = c00 + ax * (c10 - c00);
+  const V4 bottom = c01 + ax * (c11 - c01);
+  return top + ay * (bottom - top);
+}
+
+// Coarse row y of the pull from `fine`: each coarse pixel averages its (up to) 2x2 children;
+// columns wrap around the seam. `fine_at(x, y)` gives a fine pixel's premultiplied colour and
+// coverage. shaders/stitch_pull.comp sums in the same order.
+template <typename FineAt>
+void PullRow(int fine_width, int fine_height, const FineAt& fine_at, Level* coarse, int y) {
+  Px* out = coarse->row(y);
+  for (int x = 0; x < coarse->width; ++x) {
+    V4 sum = {0, 0, 0, 0};
+    int n = 0;
+    for (int dy = 0; dy < 2; ++dy) {
+      const int fy = 2 * y + dy;
+      if (fy >= fine_height) continue;
+      for (int dx = 0; dx < 2; ++dx) {
+        const int fx = 2 * x + dx;
+        sum += fine_at(fx >= fine_width ? fx - fine_width : fx, fy);
+        ++n;
+      }
+    }
+    Store(out + x, sum / static_cast<float>(n));
   }
 }
 
-// Averages the (up to) 2x2 children of each coarse pixel; columns wrap around the seam.
-Level Pull(const Level& fine) {
-  Level c;
-  c.width = (fine.width + 1) / 2;
-  c.height = (fine.height + 1) / 2;
-  c.data.assign(4 * static_cast<std::size_t>(c.width) * c.height, 0.f);
-  for (int y = 0; y < c.height; ++y)
-    for (int x = 0; x < c.width; ++x) {
-      float sum[4] = {0, 0, 0, 0};
-      int n = 0;
-      for (int dy = 0; dy < 2; ++dy) {
-        const int fy = 2 * y + dy;
-        if (fy >= fine.height) continue;
-        for (int dx = 0; dx < 2; ++dx) {
-          const float* f = fine.at((2 * x + dx) % fine.width, fy);
-          for (int k = 0; k < 4; ++k) sum[k] += f[k];
-          ++n;
-        }
-      }
-      for (int k = 0; k < 4; ++k) c.at(x, y)[k] = sum[k] / static_cast<float>(n);
-    }
-  return c;
+// Row y of level 1 of the pyramid, pulled straight from the image and its validity mask (level
+// 0 itself is never stored: its premultiplied value is (rgb, 1) where valid and 0 elsewhere).
+// The same sums as PullRow, without its per-pixel wrap and row checks where none is needed.
+void PullFromImage(const sphere::EquirectImage& image, const std::uint8_t* valid, Level* level1, int y) {
+  const int w = image.width;
+  const auto at = [&](int x, int fy) -> V4 {
+    const std::size_t p = static_cast<std::size_t>(fy) * w + x;
+    if (!valid[p]) return V4{0, 0, 0, 0};
+    const float* c = &image.rgb[3 * p];
+    return V4{c[0], c[1], c[2], 1.0f};
+  };
+  if (2 * y + 1 >= image.height || w % 2) {
+    PullRow(w, image.height, at, level1, y);
+    return;
+  }
+  Px* out = level1->row(y);
+  for (int x = 0; x < level1->width; ++x)
+    Store(out + x,
+          (((at(2 * x, 2 * y) + at(2 * x + 1, 2 * y)) + at(2 * x, 2 * y + 1)) + at(2 * x + 1, 2 * y + 1)) / 4.0f);
 }
+
+void ForRows(ThreadPool* pool, int rows, long min_chunk, const std::function<void(long, long)>& body) {
+  if (pool) {
+    pool->ParallelFor(rows, body, min_chunk);
+  } else {
+    body(0, rows);
+  }
+}
+
+// Buffers of the pull-push fill, kept between frames (no allocation per frame).
+struct Pyramid {
+  std::vector<Level> levels;  // levels[0] is pyramid level 1 (half the image), up to 1x1
+  std::vector<Level> filled;  // the pushed colour of each of those levels
+
+  void Resize(int width, int height) {
+    std::vector<std::array<int, 2>> sizes;
+    int w = width, h = height;
+    do {
+      w = (w + 1) / 2;
+      h = (h + 1) / 2;
+      sizes.push_back({w, h});
+    } while (w > 1 || h > 1);
+    levels.resize(sizes.size());
+    filled.resize(sizes.size());
+    for (std::size_t l = 0; l < sizes.size(); ++l) {
+      levels[l].Resize(sizes[l][0], sizes[l][1]);
+      filled[l].Resize(sizes[l][0], sizes[l][1]);
+    }
+  }
+
+  // With levels[0] pulled from the image, pulls the coarser levels, pushes back down to level 1
+  // and fills the image's invalid pixels from it (Gortler's push with alpha = coverage; valid
+  // pixels keep their values exactly, and an invalid one has no content of its own, so its
+  // value is the upsampled level 1 alone).
+  void Fill(sphere::EquirectImage* image, const std::uint8_t* valid, ThreadPool* pool) {
+    for (std::size_t l = 1; l < levels.size(); ++l) {
+      const Level& fine = levels[l - 1];
+      ForRows(pool, levels[l].height, 16, [&](long begin, long end) {
+        for (long y = begin; y < end; ++y)
+          PullRow(
+              fine.width, fine.height, [&](int x, int fy) { return Load(fine.row(fy) + x); }, &levels[l],
+              static_cast<int>(y));
+      });
+    }
+    // Top (1x1): un-premultiplied.
+    {
+      const V4 t = Load(levels.back().row(0));
+      Store(filled.back().row(0), t[3] > 0 ? t / t[3] : V4{0, 0, 0, 0});
+    }
+    for (std::size_t l = levels.size() - 1; l-- > 0;) {
+      const Level& own = levels[l];
+      const Level& coarse = filled[l + 1];
+      Level& next = filled[l];
+      ForRows(pool, own.height, 8, [&](long begin, long end) {
+        for (long y = begin; y < end; ++y) {
+          const Px* o = own.row(static_cast<int>(y));
+          Px* dst = next.row(static_cast<int>(y));
+          for (int x = 0; x < own.width; ++x) {
+            const V4 ov = Load(o + x);
+            // A fully covered pixel keeps its own colour ((1 − 1)·up adds nothing).
+            Store(dst + x, ov[3] >= 1 ? ov : ov + (1 - ov[3]) * Upsample(coarse, x, static_cast<int>(y)));
+          }
+        }
+      });
+    }
+    const Level& level1 = filled[0];
+    const int w = image->width;
+    ForRows(pool, image->height, 8, [&](long begin, long end) {
+      for (long y = begin; y < end; ++y)
+        for (int x = 0; x < w; ++x) {
+          const std::size_t p = static_cast<std::size_t>(y) * w + x;
+          if (valid[p]) continue;
+          const V4 up = Upsample(level1, x, static_cast<int>(y));
+          for (int k = 0; k < 3; ++k) image->rgb[3 * p + static_cast<std::size_t>(k)] = up[k];
+        }
+    });
+  }
+};
 
 }  // namespace
 
 void FillUnseen(sphere::EquirectImage* image, const std::vector<std::uint8_t>& valid, ThreadPool* pool) {
-  std::vector<Level> levels(1);
-  levels[0].width = image->width;
-  levels[0].height = image->height;
-  levels[0].data.assign(4 * image->pixel_count(), 0.f);
-  for (std::size_t p = 0; p < image->pixel_count(); ++p) {
-    if (!valid[p]) continue;
-    for (int k = 0; k < 3; ++k) levels[0].data[4 * p + k] = image->rgb[3 * p + k];
-    levels[0].data[4 * p + 3] = 1;
-  }
-  while (levels.back().width > 1 || levels.back().height > 1) levels.push_back(Pull(levels.back()));
-  // Top: un-premultiply. Then each level's filled colour is its own premultiplied content plus
-  // the coarser filled colour for the coverage it lacks (Gortler's push with a = coverage).
-  Level filled = levels.back();
-  {
-    float* t = filled.at(0, 0);
-    const float a = t[3];
-    for (int k = 0; k < 3; ++k) t[k] = a > 0 ? t[k] / a : 0.f;
-  }
-  for (int l = static_cast<int>(levels.size()) - 2; l >= 0; --l) {
-    const Level& own = levels[static_cast<std::size_t>(l)];
-    Level next;
-    next.width = own.width;
-    next.height = own.height;
-    next.data.assign(own.data.size(), 0.f);
-    auto rows = [&](long begin, long end) {
-      for (long y = begin; y < end; ++y)
-        for (int x = 0; x < own.width; ++x) {
-          const float* o = own.at(x, static_cast<int>(y));
-          float* dst = next.at(x, static_cast<int>(y));
-          // A fully covered pixel keeps its own colour ((1 − 1)·up adds nothing), so the
-          // upsample is skipped there; most of the finest level is covered.
-          if (o[3] >= 1) {
-            for (int k = 0; k < 3; ++k) dst[k] = o[k];
-          } else {
-            float up[3];
-            Upsample(filled, x, static_cast<int>(y), up);
-            for (int k = 0; k < 3; ++k) dst[k] = o[k] + (1 - o[3]) * up[k];
-          }
-          dst[3] = 1;
-        }
-    };
-    if (pool) {
-      pool->ParallelFor(own.height, rows, 8);
-    } else {
-      rows(0, own.height);
-    }
-    filled = std::move(next);
-  }
-  for (std::size_t p = 0; p < image->pixel_count(); ++p)
-    if (!valid[p])
-      for (int k = 0; k < 3; ++k) image->rgb[3 * p + k] = filled.data[4 * p + k];
+  Pyramid pyramid;
+  pyramid.Resize(image->width, image->height);
+  ForRows(pool, pyramid.levels[0].height, 8, [&](long begin, long end) {
+    for (long y = begin; y < end; ++y) PullFromImage(*image, valid.data(), &pyramid.levels[0], static_cast<int>(y));
+  });
+  pyramid.Fill(image, valid.data(), pool);
 }
 
 std::string StitchReport::Summary() const {
@@ -318,10 +400,104 @@ struct Stitcher::Impl {
   StitchLut lut;
   double lut_ms = 0;
   ThreadPool pool;
-  std::vector<LinearImage> linear;
   std::unique_ptr<GpuStitchPipeline> gpu;
+  // CPU path: the lookup table as taps into `pixels`, every camera's linear (and, where the
+  // table says so, smoothed) RGB one after the other from first_pixel[c], rows of width[c].
+  std::vector<Tap> taps;
+  std::vector<std::size_t> first_pixel;
+  std::vector<std::uint32_t> stride;
+  std::vector<Px> pixels;
+  // Gain samples: the pixels of lut.gain_pixels[i] are samples [gain_first[i], gain_first[i + 1])
+  // of gain_camera / gain_value. Each is the nearest pixel of its camera's level, read while the
+  // linearization has that row in cache: level row r (cameras' rows one after the other from
+  // level_first_row[c]) holds items [gain_row_first[r], gain_row_first[r + 1]) of gain_items.
+  struct GainItem {
+    std::uint32_t x, sample;
+  };
+  std::vector<std::uint32_t> gain_first, gain_camera, gain_row_first, level_first_row;
+  std::vector<GainItem> gain_items;
+  std::vector<float> gain_value;  // per frame: mean of R, G, B; negative where clipped
+  Pyramid pyramid;
 
   Impl(const Rig& r, const StitchOptions& o) : rig(r), options(o), pool(o.threads) {}
+
+  void PrepareCpu() {
+    std::size_t total = 0;
+    std::uint32_t widest = 0;
+    for (int c = 0; c < rig.camera_count(); ++c) {
+      const CameraModel& m = rig.cameras[static_cast<std::size_t>(c)].model;
+      const int level = lut.level[static_cast<std::size_t>(c)];
+      first_pixel.push_back(total);
+      stride.push_back(static_cast<std::uint32_t>(LevelSize(m.width(), level)));
+      widest = std::max(widest, stride.back());
+      total += static_cast<std::size_t>(stride.back()) * static_cast<std::size_t>(LevelSize(m.height(), level));
+    }
+    // The bottom-right tap of the last pixel reaches one row and one pixel beyond it.
+    const std::size_t padded = total + widest + 1;
+    if (padded > kTapIndexMask)
+      throw Error(rig.path.string(), "the cameras have " + std::to_string(total) +
+                                         " pixels together; the CPU stitcher indexes 2^27 at most");
+    pixels.assign(padded, Px{{0, 0, 0, 0}});
+    taps.resize(lut.entries.size());
+    for (std::size_t e = 0; e < lut.entries.size(); ++e) {
+      const StitchLut::Entry& in = lut.entries[e];
+      const CameraModel& m = rig.cameras[in.camera].model;
+      const int level = lut.level[in.camera];
+      const int w = LevelSize(m.width(), level), h = LevelSize(m.height(), level);
+      // stitch_warp.comp maps to the level with the same (exact) float operations.
+      const float u = level ? (in.u - 0.5f) * 0.5f : in.u, v = level ? (in.v - 0.5f) * 0.5f : in.v;
+      const float fu = std::floor(u), fv = std::floor(v);
+      float au = u - fu, av = v - fv;
+      int x0 = static_cast<int>(fu), y0 = static_cast<int>(fv);
+      if (x0 < 0 || x0 >= w - 1) {
+        x0 = std::clamp(x0, 0, w - 1);
+        au = 0;
+      }
+      if (y0 < 0 || y0 >= h - 1) {
+        y0 = std::clamp(y0, 0, h - 1);
+        av = 0;
+      }
+      const std::size_t index = first_pixel[in.camera] + static_cast<std::size_t>(y0) * w + x0;
+      taps[e] = {static_cast<std::uint32_t>(index) | (in.camera << kTapIndexBits), au, av, in.weight};
+    }
+    PrepareGainSamples();
+    if (options.fill_unseen && options.device == StitchDevice::kCpu) pyramid.Resize(lut.width, lut.height);
+  }
+
+  void PrepareGainSamples() {
+    const int n = rig.camera_count();
+    level_first_row.assign(static_cast<std::size_t>(n) + 1, 0);
+    for (int c = 0; c < n; ++c) {
+      const auto cu = static_cast<std::size_t>(c);
+      level_first_row[cu + 1] =
+          level_first_row[cu] + static_cast<std::uint32_t>(LevelSize(rig.cameras[cu].model.height(), lut.level[cu]));
+    }
+    std::vector<std::vector<GainItem>> rows(level_first_row.back());
+    gain_first.assign(1, 0);
+    gain_camera.clear();
+    for (const std::uint32_t p : lut.gain_pixels) {
+      for (std::uint32_t e = lut.offsets[p]; e < lut.offsets[p + 1]; ++e) {
+        const StitchLut::Entry& in = lut.entries[e];
+        const int level = lut.level[in.camera];
+        const CameraModel& m = rig.cameras[in.camera].model;
+        const float u = level ? (in.u - 0.5f) * 0.5f : in.u, v = level ? (in.v - 0.5f) * 0.5f : in.v;
+        const int x = std::clamp(static_cast<int>(std::lround(u)), 0, LevelSize(m.width(), level) - 1);
+        const int y = std::clamp(static_cast<int>(std::lround(v)), 0, LevelSize(m.height(), level) - 1);
+        rows[level_first_row[in.camera] + static_cast<std::uint32_t>(y)].push_back(
+            {static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(gain_camera.size())});
+        gain_camera.push_back(in.camera);
+      }
+      gain_first.push_back(static_cast<std::uint32_t>(gain_camera.size()));
+    }
+    gain_row_first.assign(1, 0);
+    gain_items.clear();
+    for (auto& r : rows) {
+      std::sort(r.begin(), r.end(), [](const GainItem& a, const GainItem& b) { return a.x < b.x; });
+      gain_items.insert(gain_items.end(), r.begin(), r.end());
+      gain_row_first.push_back(static_cast<std::uint32_t>(gain_items.size()));
+    }
+    gain_value.assign(gain_camera.size(), 0.f);
+  }
 
   void CheckImages(const std::vector<cv::Mat>& images) const {
     if (static_cast<int>(images.size()) != rig.camera_count())
@@ -342,43 +518,77 @@ struct Stitcher::Impl {
     }
   }
 
-  // Linearizes every present frame; returns each frame's mean linear intensity (0 if missing).
+  // Linearizes every present frame into `pixels`, at the level lut.level gives each camera, and
+  // reads the gain samples on the way. Returns each frame's mean linear intensity (0 if missing).
   std::vector<double> Linearize(const std::vector<cv::Mat>& images) {
     const auto& table = SrgbTable();
     const int n = rig.camera_count();
-    linear.resize(static_cast<std::size_t>(n));
+    // Clipped samples say nothing about exposure (the true value is unknown): marked negative.
+    constexpr float kClipped = 0.98f;
+    // All cameras' level rows as one index range, so both threads share every camera's work.
+    const auto& first_row = level_first_row;
+    std::vector<double> row_sums(first_row.back(), 0.0);
+    pool.ParallelFor(
+        first_row.back(),
+        [&](long begin, long end) {
+          for (long r = begin; r < end; ++r) {
+            const auto cu = static_cast<std::size_t>(
+                std::upper_bound(first_row.begin(), first_row.end(), static_cast<std::uint32_t>(r)) -
+                first_row.begin() - 1);
+            const cv::Mat& m = images[cu];
+            if (m.empty()) continue;
+            const int y = static_cast<int>(r - first_row[cu]);
+            const int w = m.cols;
+            Px* out = &pixels[first_pixel[cu] + static_cast<std::size_t>(y) * stride[cu]];
+            const auto lin = [&](const unsigned char* bgr) {
+              return V4{table[bgr[2]], table[bgr[1]], table[bgr[0]], 0.f};
+            };
+            V4 sum = {0, 0, 0, 0};
+            if (!lut.level[cu]) {
+              const unsigned char* src = m.ptr<unsigned char>(y);
+              for (int x = 0; x < w; ++x, src += 3) {
+                const V4 v = lin(src);
+                Store(out + x, v);
+                sum += v;
+              }
+            } else {
+              // 2x2 box: ((p00 + p10) + p01) + p11, as stitch_linearize.comp sums it. An odd
+              // last column or row averages the image's last one with itself, and counts once
+              // in the mean.
+              const bool has_bottom = 2 * y + 1 < m.rows;
+              const unsigned char* top = m.ptr<unsigned char>(2 * y);
+              const unsigned char* bottom = m.ptr<unsigned char>(has_bottom ? 2 * y + 1 : 2 * y);
+              const int pairs = w / 2;
+              for (int x = 0; x < pairs; ++x, top += 6, bottom += 6) {
+                const V4 a = lin(top), b = lin(top + 3), c = lin(bottom), d = lin(bottom + 3);
+                const V4 box = a + b + c + d;
+                Store(out + x, box * 0.25f);
+                sum += has_bottom ? box : a + b;
+              }
+              if (w % 2) {
+                const V4 a = lin(top), c = lin(bottom);
+                Store(out + pairs, (a + a + c + c) * 0.25f);
+                sum += has_bottom ? a + c : a;
+              }
+            }
+            row_sums[static_cast<std::size_t>(r)] = static_cast<double>(sum[0]) + sum[1] + sum[2];
+            for (std::uint32_t i = gain_row_first[static_cast<std::size_t>(r)];
+                 i < gain_row_first[static_cast<std::size_t>(r) + 1]; ++i) {
+              const V4 v = Load(out + gain_items[i].x);
+              const bool clipped = std::max({v[0], v[1], v[2]}) >= kClipped;
+              gain_value[gain_items[i].sample] = clipped ? -1.f : (v[0] + v[1] + v[2]) / 3;
+            }
+          }
+        },
+        8);
     std::vector<double> means(static_cast<std::size_t>(n), 0.0);
     for (int c = 0; c < n; ++c) {
-      const cv::Mat& m = images[static_cast<std::size_t>(c)];
-      LinearImage& li = linear[static_cast<std::size_t>(c)];
-      if (m.empty()) {
-        li = {};
-        continue;
-      }
-      li.width = m.cols;
-      li.height = m.rows;
-      li.rgb.resize(3 * static_cast<std::size_t>(m.cols) * m.rows);
-      std::vector<double> row_sums(static_cast<std::size_t>(m.rows), 0.0);
-      pool.ParallelFor(
-          m.rows,
-          [&](long begin, long end) {
-            for (long y = begin; y < end; ++y) {
-              const unsigned char* src = m.ptr<unsigned char>(static_cast<int>(y));
-              float* dst = &li.rgb[3 * static_cast<std::size_t>(y) * m.cols];
-              double sum = 0;
-              for (int x = 0; x < m.cols; ++x, src += 3, dst += 3) {
-                dst[0] = table[src[2]];
-                dst[1] = table[src[1]];
-                dst[2] = table[src[0]];
-                sum += dst[0] + dst[1] + dst[2];
-              }
-              row_sums[static_cast<std::size_t>(y)] = sum;
-            }
-          },
-          16);
+      const auto cu = static_cast<std::size_t>(c);
+      const cv::Mat& m = images[cu];
+      if (m.empty()) continue;
       double total = 0;
-      for (double s : row_sums) total += s;
-      means[static_cast<std::size_t>(c)] = total / (3.0 * m.cols * m.rows);
+      for (std::uint32_t r = first_row[cu]; r < first_row[cu + 1]; ++r) total += row_sums[r];
+      means[cu] = total / (3.0 * m.cols * m.rows);
     }
     return means;
   }
@@ -405,65 +615,100 @@ struct Stitcher::Impl {
 
   std::vector<double> EstimateGains(const std::vector<bool>& used) const {
     const int n = rig.camera_count();
-    std::vector<std::vector<double>> counts(n, std::vector<double>(n, 0.0)), sums = counts;
-    // Clipped samples say nothing about exposure (the true value is unknown): skip them.
-    constexpr float kClipped = 0.98f;
-    for (const std::uint32_t p : lut.gain_pixels) {
+    std::array<bool, kMaxStitchCameras> use{};
+    for (int c = 0; c < n; ++c) use[static_cast<std::size_t>(c)] = used[static_cast<std::size_t>(c)];
+    std::vector<double> count(static_cast<std::size_t>(n) * n, 0.0), sum = count;
+    for (std::size_t i = 0; i + 1 < gain_first.size(); ++i) {
       std::array<float, kMaxStitchCameras> intensity{};
-      std::array<int, kMaxStitchCameras> cams{};
+      std::array<std::uint32_t, kMaxStitchCameras> cams{};
       int k = 0;
       bool clipped = false;
-      for (std::uint32_t e = lut.offsets[p]; e < lut.offsets[p + 1]; ++e) {
-        const auto& entry = lut.entries[e];
-        if (!used[entry.camera]) continue;
-        float rgb[3];
-        linear[entry.camera].Sample(entry.u, entry.v, rgb);
-        clipped = clipped || std::max({rgb[0], rgb[1], rgb[2]}) >= kClipped;
-        cams[static_cast<std::size_t>(k)] = static_cast<int>(entry.camera);
-        intensity[static_cast<std::size_t>(k)] = (rgb[0] + rgb[1] + rgb[2]) / 3;
+      for (std::uint32_t j = gain_first[i]; j < gain_first[i + 1]; ++j) {
+        if (!use[gain_camera[j]]) continue;
+        clipped = clipped || gain_value[j] < 0;
+        cams[static_cast<std::size_t>(k)] = gain_camera[j];
+        intensity[static_cast<std::size_t>(k)] = gain_value[j];
         ++k;
       }
       if (clipped || k < 2) continue;
       for (int a = 0; a < k; ++a)
         for (int b = 0; b < k; ++b) {
           if (a == b) continue;
-          counts[cams[a]][cams[b]] += 1;
-          sums[cams[a]][cams[b]] += intensity[static_cast<std::size_t>(a)];
+          const std::size_t ab = static_cast<std::size_t>(cams[a]) * n + cams[b];
+          count[ab] += 1;
+          sum[ab] += intensity[static_cast<std::size_t>(a)];
         }
     }
+    std::vector<std::vector<double>> counts(n, std::vector<double>(n, 0.0)), means = counts;
     for (int i = 0; i < n; ++i)
-      for (int j = 0; j < n; ++j) sums[i][j] = counts[i][j] > 0 ? sums[i][j] / counts[i][j] : 0;
-    return SolveGains(counts, sums, used, options);
+      for (int j = 0; j < n; ++j) {
+        const std::size_t ij = static_cast<std::size_t>(i) * n + j;
+        counts[i][j] = count[ij];
+        means[i][j] = count[ij] > 0 ? sum[ij] / count[ij] : 0;
+      }
+    return SolveGains(counts, means, used, options);
   }
 
-  void WarpCpu(const std::vector<bool>& used, const std::vector<double>& gains, StitchedFrame* out) {
-    out->image = sphere::EquirectImage(lut.width, lut.height);
-    out->valid.assign(lut.pixel_count(), 0);
+  // Blends every output pixel; with the fill on, pulls level 1 of its pyramid on the way (two
+  // output rows at a time, while they are in cache). Returns the number of valid pixels.
+  std::size_t WarpCpu(const std::vector<bool>& used, const std::vector<double>& gains, StitchedFrame* out) {
+    if (out->image.width != lut.width || out->image.height != lut.height ||
+        out->image.rgb.size() != 3 * lut.pixel_count())
+      out->image = sphere::EquirectImage(lut.width, lut.height);
+    out->valid.resize(lut.pixel_count());
     std::array<float, kMaxStitchCameras> g{};
     for (std::size_t c = 0; c < gains.size(); ++c) g[c] = used[c] ? static_cast<float>(gains[c]) : 0.f;
+    const int w = lut.width, h = lut.height, pairs = (h + 1) / 2;
+    std::vector<std::uint32_t> valid_per_pair(static_cast<std::size_t>(pairs), 0);
+    float* rgb = out->image.rgb.data();
+    std::uint8_t* valid = out->valid.data();
+    const Px* px = pixels.data();
+    const bool fill = options.fill_unseen;
+    constexpr std::size_t kPrefetchTaps = 32;
+    const std::size_t last_tap = taps.empty() ? 0 : taps.size() - 1;
     pool.ParallelFor(
-        lut.height,
+        pairs,
         [&](long begin, long end) {
-          for (std::size_t p = static_cast<std::size_t>(begin) * lut.width;
-               p < static_cast<std::size_t>(end) * lut.width; ++p) {
-            float acc[3] = {0, 0, 0}, wsum = 0;
-            for (std::uint32_t e = lut.offsets[p]; e < lut.offsets[p + 1]; ++e) {
-              const auto& entry = lut.entries[e];
-              if (g[entry.camera] == 0) continue;
-              float rgb[3];
-              linear[entry.camera].Sample(entry.u, entry.v, rgb);
-              const float w = entry.weight, wg = w * g[entry.camera];
-              for (int k = 0; k < 3; ++k) acc[k] += wg * rgb[k];
-              wsum += w;
+          for (long pair = begin; pair < end; ++pair) {
+            std::uint32_t count = 0;
+            const std::size_t p_begin = static_cast<std::size_t>(2 * pair) * w;
+            const std::size_t p_end = static_cast<std::size_t>(std::min<long>(2 * pair + 2, h)) * w;
+            for (std::size_t p = p_begin; p < p_end; ++p) {
+              V4 acc = {0, 0, 0, 0};
+              float wsum = 0;
+              for (std::uint32_t e = lut.offsets[p]; e < lut.offsets[p + 1]; ++e) {
+                // The taps wander along curves through the camera images, which hardware
+                // prefetchers do not follow: fetch the rows of a tap a little ahead.
+                {
+                  const Tap& ahead = taps[std::min<std::size_t>(e + kPrefetchTaps, last_tap)];
+                  const Px* q = px + (ahead.packed & kTapIndexMask);
+                  __builtin_prefetch(q);
+                  __builtin_prefetch(q + stride[ahead.packed >> kTapIndexBits]);
+                }
+                const Tap& t = taps[e];
+                const std::uint32_t camera = t.packed >> kTapIndexBits;
+                const float gain = g[camera];
+                if (gain == 0) continue;
+                acc += (t.weight * gain) * SampleTap(px, t, stride[camera]);
+                wsum += t.weight;
+              }
+              // Unseen pixels are written too (black), as the buffer may hold an earlier frame.
+              const V4 v = wsum > 0 ? acc / wsum : V4{0, 0, 0, 0};
+              float* dst = rgb + 3 * p;
+              dst[0] = v[0];
+              dst[1] = v[1];
+              dst[2] = v[2];
+              valid[p] = wsum > 0;
+              count += wsum > 0;
             }
-            if (wsum > 0) {
-              float* dst = &out->image.rgb[3 * p];
-              for (int k = 0; k < 3; ++k) dst[k] = acc[k] / wsum;
-              out->valid[p] = 1;
-            }
+            valid_per_pair[static_cast<std::size_t>(pair)] = count;
+            if (fill) PullFromImage(out->image, valid, &pyramid.levels[0], static_cast<int>(pair));
           }
         },
         4);
+    std::size_t total = 0;
+    for (const auto v : valid_per_pair) total += v;
+    return total;
   }
 };
 
@@ -471,8 +716,9 @@ Stitcher::Stitcher(const Rig& rig, const StitchOptions& options) : impl_(std::ma
   options.Check();
   const auto t0 = Clock::now();
   impl_->lut = BuildStitchLut(rig, options);
-  impl_->lut_ms = MsSince(t0);
+  impl_->PrepareCpu();
   if (options.device == StitchDevice::kGpu) impl_->gpu = std::make_unique<GpuStitchPipeline>(rig, impl_->lut);
+  impl_->lut_ms = MsSince(t0);
 }
 
 Stitcher::~Stitcher() = default;
@@ -488,34 +734,42 @@ StitchedFrame Stitcher::Stitch(const FrameSet& set) {
 }
 
 StitchedFrame Stitcher::Stitch(const std::vector<cv::Mat>& images) {
+  StitchedFrame out;
+  Stitch(images, &out);
+  return out;
+}
+
+void Stitcher::Stitch(const std::vector<cv::Mat>& images, StitchedFrame* frame) {
   Impl& s = *impl_;
   s.CheckImages(images);
   const auto t0 = Clock::now();
-  StitchedFrame out;
+  StitchedFrame& out = *frame;
   StitchReport& r = out.report;
+  r = {};
+  const int n = s.rig.camera_count();
+  r.gains.assign(static_cast<std::size_t>(n), 1.0);
+  std::size_t valid = 0;
+  // Both devices take the means (black frames) and the gains from the CPU's linear frames.
   r.camera_mean = s.Linearize(images);
   r.camera_used = s.UsableCameras(images, r.camera_mean);
   r.ms_prepare = MsSince(t0);
   auto t = Clock::now();
-  r.gains.assign(static_cast<std::size_t>(s.rig.camera_count()), 1.0);
   if (s.options.compensate_gains) r.gains = s.EstimateGains(r.camera_used);
   r.ms_gains = MsSince(t);
   t = Clock::now();
   if (s.gpu) {
     s.gpu->Run(images, r.camera_used, r.gains, s.options.fill_unseen, &out.image, &out.valid);
     r.ms_warp = MsSince(t);  // the GPU does warp and fill in one submission
+    for (auto v : out.valid) valid += v;
   } else {
-    s.WarpCpu(r.camera_used, r.gains, &out);
+    valid = s.WarpCpu(r.camera_used, r.gains, &out);
     r.ms_warp = MsSince(t);
     t = Clock::now();
-    if (s.options.fill_unseen) FillUnseen(&out.image, out.valid, &s.pool);
+    if (s.options.fill_unseen && valid < out.valid.size()) s.pyramid.Fill(&out.image, out.valid.data(), &s.pool);
     r.ms_fill = MsSince(t);
   }
-  std::size_t valid = 0;
-  for (auto v : out.valid) valid += v;
   r.valid_fraction = static_cast<double>(valid) / static_cast<double>(out.valid.size());
   r.ms_total = MsSince(t0);
-  return out;
 }
 
 }  // namespace odvr::capture

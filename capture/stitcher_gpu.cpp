@@ -12,10 +12,13 @@ namespace odvr::capture {
 struct GpuStitchPipeline::State {
   int width = 0, height = 0, cameras = 0;
   std::vector<std::array<int, 2>> cam_sizes;
+  // Per camera: the level it is sampled at, that level's size, and its first vec4 in `linear`.
+  std::array<int, kMaxStitchCameras> level{}, base{};
+  std::array<int, 2 * kMaxStitchCameras> level_size{};
   int array_w = 0, array_h = 0;
-  gl::Buffer offsets, entries, srgb_table;
+  gl::Buffer offsets, entries, srgb_table, linear;
   gl::Texture images{gl::NoCreate};
-  gl::Program warp{gl::NoCreate}, pull{gl::NoCreate}, push{gl::NoCreate};
+  gl::Program linearize{gl::NoCreate}, warp{gl::NoCreate}, pull{gl::NoCreate}, push{gl::NoCreate};
   // Pull-push pyramid: level 0 is the warp output; filled[l] the pushed colour of level l.
   std::vector<std::array<int, 2>> sizes;
   std::vector<gl::Buffer> prem, filled;
@@ -26,11 +29,20 @@ GpuStitchPipeline::GpuStitchPipeline(const Rig& rig, const StitchLut& lut) : sta
   s.width = lut.width;
   s.height = lut.height;
   s.cameras = lut.cameras;
-  for (const auto& c : rig.cameras) {
-    s.cam_sizes.push_back({c.model.width(), c.model.height()});
-    s.array_w = std::max(s.array_w, c.model.width());
-    s.array_h = std::max(s.array_h, c.model.height());
+  int total = 0;
+  for (int c = 0; c < s.cameras; ++c) {
+    const CameraModel& m = rig.cameras[static_cast<std::size_t>(c)].model;
+    const auto cu = static_cast<std::size_t>(c);
+    s.cam_sizes.push_back({m.width(), m.height()});
+    s.array_w = std::max(s.array_w, m.width());
+    s.array_h = std::max(s.array_h, m.height());
+    s.level[cu] = lut.level[cu];
+    s.level_size[2 * cu] = s.level[cu] ? (m.width() + 1) / 2 : m.width();
+    s.level_size[2 * cu + 1] = s.level[cu] ? (m.height() + 1) / 2 : m.height();
+    s.base[cu] = total;
+    total += s.level_size[2 * cu] * s.level_size[2 * cu + 1];
   }
+  s.linear.Allocate(sizeof(float) * 4 * static_cast<std::size_t>(total));
   s.offsets.SetData(lut.offsets);
   static_assert(sizeof(StitchLut::Entry) == 16, "matches the std430 Entry struct of stitch_warp.comp");
   if (lut.entries.empty()) {
@@ -49,6 +61,7 @@ GpuStitchPipeline::GpuStitchPipeline(const Rig& rig, const StitchLut& lut) : sta
   glTextureParameteri(id, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
   glTextureParameteri(id, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
 
+  s.linearize = gl::ShaderLibrary::Compute("stitch_linearize.comp");
   s.warp = gl::ShaderLibrary::Compute("stitch_warp.comp");
   s.pull = gl::ShaderLibrary::Compute("stitch_pull.comp");
   s.push = gl::ShaderLibrary::Compute("stitch_push.comp");
@@ -73,11 +86,8 @@ void GpuStitchPipeline::Run(const std::vector<cv::Mat>& images, const std::vecto
   glGetIntegerv(GL_UNPACK_ALIGNMENT, &alignment);
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   std::array<float, kMaxStitchCameras> g{};
-  std::array<int, 2 * kMaxStitchCameras> cam_size{};
   for (int c = 0; c < s.cameras; ++c) {
     const auto cu = static_cast<std::size_t>(c);
-    cam_size[2 * cu] = s.cam_sizes[cu][0];
-    cam_size[2 * cu + 1] = s.cam_sizes[cu][1];
     if (!used[cu] || images[cu].empty()) continue;
     g[cu] = static_cast<float>(gains[cu]);
     const cv::Mat m = images[cu].isContinuous() ? images[cu] : images[cu].clone();
@@ -85,15 +95,33 @@ void GpuStitchPipeline::Run(const std::vector<cv::Mat>& images, const std::vecto
   }
   glPixelStorei(GL_UNPACK_ALIGNMENT, alignment);
 
+  const GLuint lin = s.linearize.id();
+  s.linear.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
+  s.srgb_table.BindBase(GL_SHADER_STORAGE_BUFFER, 1);
+  s.images.BindUnit(0);
+  for (int c = 0; c < s.cameras; ++c) {
+    const auto cu = static_cast<std::size_t>(c);
+    if (g[cu] == 0) continue;  // never sampled
+    glProgramUniform1i(lin, s.linearize.Uniform("uCamera"), c);
+    glProgramUniform2i(lin, s.linearize.Uniform("uCamSize"), s.cam_sizes[cu][0], s.cam_sizes[cu][1]);
+    glProgramUniform2i(lin, s.linearize.Uniform("uLevelSize"), s.level_size[2 * cu], s.level_size[2 * cu + 1]);
+    glProgramUniform1i(lin, s.linearize.Uniform("uLevel"), s.level[cu]);
+    glProgramUniform1i(lin, s.linearize.Uniform("uBase"), s.base[cu]);
+    s.linearize.DispatchCovering(static_cast<unsigned>(s.level_size[2 * cu]),
+                                 static_cast<unsigned>(s.level_size[2 * cu + 1]));
+  }
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+
   const GLuint warp = s.warp.id();
   glProgramUniform2i(warp, s.warp.Uniform("uSize"), s.width, s.height);
   glProgramUniform1fv(warp, s.warp.Uniform("uGain"), s.cameras, g.data());
-  glProgramUniform2iv(warp, s.warp.Uniform("uCamSize"), s.cameras, cam_size.data());
+  glProgramUniform2iv(warp, s.warp.Uniform("uLevelSize"), s.cameras, s.level_size.data());
+  glProgramUniform1iv(warp, s.warp.Uniform("uLevel"), s.cameras, s.level.data());
+  glProgramUniform1iv(warp, s.warp.Uniform("uBase"), s.cameras, s.base.data());
   s.offsets.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
   s.entries.BindBase(GL_SHADER_STORAGE_BUFFER, 1);
   s.prem[0].BindBase(GL_SHADER_STORAGE_BUFFER, 2);
-  s.srgb_table.BindBase(GL_SHADER_STORAGE_BUFFER, 3);
-  s.images.BindUnit(0);
+  s.linear.BindBase(GL_SHADER_STORAGE_BUFFER, 3);
   s.warp.DispatchCovering(static_cast<unsigned>(s.width), static_cast<unsigned>(s.height));
   glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 

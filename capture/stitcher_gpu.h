@@ -1,7 +1,8 @@
 #pragma once
 // The stitcher's GPU path (capture internal): GLSL compute passes over the same lookup table as
 // the CPU path. Camera frames go up as one RGBA8 texture array and are linearized in the shader
-// through the same 256-entry sRGB table the CPU uses, so both paths read identical inputs.
+// through the same 256-entry sRGB table the CPU uses, at the same level (full or half
+// resolution) with the same sums, so both paths sample identical values.
 #include <cstdint>
 #include <memory>
 #include <opencv2/core/mat.hpp>

@@ -1,8 +1,9 @@
 #version 450
 // Stitcher, pass 1 (capture/stitcher.cpp is the CPU reference): per output equirect pixel, the
 // lookup-table entries (camera, pixel, feather weight) are sampled bilinearly from the
-// linearized camera frames, scaled by the camera's gain and blended by weight. Writes linear RGB
-// and coverage (1 = some camera in use saw it, 0 = unseen) for the pull-push fill.
+// linearized camera frames at the camera's level (stitch_linearize.comp), scaled by the camera's
+// gain and blended by weight. Writes linear RGB and coverage (1 = some camera in use saw it,
+// 0 = unseen) for the pull-push fill.
 layout(local_size_x = 16, local_size_y = 16) in;
 
 struct Entry {
@@ -14,22 +15,25 @@ struct Entry {
 layout(std430, binding = 0) readonly buffer Offsets { uint offsets[]; };
 layout(std430, binding = 1) readonly buffer Entries { Entry entries[]; };
 layout(std430, binding = 2) writeonly buffer Out { vec4 outp[]; };
-layout(std430, binding = 3) readonly buffer SrgbTable { float srgb_table[256]; };
-// RGBA8 unorm, one layer per camera; texelFetch returns k / 255 exactly, which indexes the table.
-layout(binding = 0) uniform sampler2DArray uImages;
+layout(std430, binding = 3) readonly buffer Linear { vec4 linear[]; };
 
 uniform ivec2 uSize;
 uniform float uGain[32];  // 0 for cameras left out (missing or black frames)
-uniform ivec2 uCamSize[32];
+uniform ivec2 uLevelSize[32];
+uniform int uLevel[32];
+uniform int uBase[32];
 
-vec3 fetchLinear(int cam, int x, int y) {
-  ivec3 k = ivec3(round(texelFetch(uImages, ivec3(x, y, cam), 0).rgb * 255.0));
-  return vec3(srgb_table[k.r], srgb_table[k.g], srgb_table[k.b]);
-}
+vec3 fetchLinear(int cam, int x, int y) { return linear[uBase[cam] + y * uLevelSize[cam].x + x].rgb; }
 
-// Same expression as LinearImage::Sample: OpenCV pixel centres at integers, edges clamped.
+// Same expression as SampleTap in stitcher.cpp: OpenCV pixel centres at integers, edges clamped
+// (the CPU gets the clamp by a zero fraction), full-image coordinates mapped to the level by
+// (u - 0.5) / 2, exactly in float.
 vec3 sampleBilinear(int cam, float u, float v) {
-  ivec2 size = uCamSize[cam];
+  if (uLevel[cam] != 0) {
+    u = (u - 0.5) * 0.5;
+    v = (v - 0.5) * 0.5;
+  }
+  ivec2 size = uLevelSize[cam];
   float fu = floor(u), fv = floor(v);
   float au = u - fu, av = v - fv;
   int x0 = clamp(int(fu), 0, size.x - 1), x1 = clamp(int(fu) + 1, 0, size.x - 1);
