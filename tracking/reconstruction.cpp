@@ -16,6 +16,7 @@
 #include "engine/core/error.h"
 #include "tracking/ransac.h"
 #include "tracking/triangulation.h"
+#include "tracking/trifocal.h"
 
 namespace odvr::tracking {
 namespace {
@@ -92,6 +93,31 @@ double AngleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
+// A trifocal datum whose residual is in pixels: the normalized-plane error times the pixels one
+// normalized unit spans at the point's angle from the axis.
+struct PixelTriple {
+  PointTriple triple;
+  double px_per_unit = 1;
+};
+
+struct PixelTrifocalEstimator {
+  using Datum = PixelTriple;
+  using Model = TrifocalTensor;
+  static constexpr int kMinimalSample = TrifocalEstimator::kMinimalSample;
+
+  std::vector<Model> Estimate(const std::vector<Datum>& data) const {
+    std::vector<PointTriple> triples;
+    triples.reserve(data.size());
+    for (const auto& d : data) triples.push_back(d.triple);
+    return TrifocalEstimator().Estimate(triples);
+  }
+  void Residuals(const std::vector<Datum>& data, const Model& model, std::vector<double>* residuals) const {
+    residuals->resize(data.size());
+    for (size_t i = 0; i < data.size(); ++i)
+      (*residuals)[i] = model.ReprojectionError(data[i].triple) * data[i].px_per_unit;
+  }
+};
+
 class Reconstructor {
  public:
   Reconstructor(const capture::Rig& rig, const ReconstructionOptions& options, const ReconstructionCallbacks& callbacks)
@@ -113,6 +139,7 @@ class Reconstructor {
                                 " cameras but the rig file " + out_.rig.path.string() + " describes " +
                                 std::to_string(geometry_.camera_count()));
     Track(source);
+    CheckTrifocal();
     BuildPoints();
     Initialize();
     RegisterAll();
@@ -228,8 +255,10 @@ class Reconstructor {
         }
         views.push_back(std::move(view));
       }
-      for (const auto& m : MatchAcrossCameras(geometry_, views, options_.links, &link_stats_))
+      for (const auto& m : MatchAcrossCameras(geometry_, views, options_.links, &link_stats_)) {
         out_.cross_camera_links += links_.Union(m.id_a, m.id_b) ? 1 : 0;
+        link_records_.push_back({m.id_a, m.id_b, k});
+      }
       Progress("tracking", static_cast<int>(read), static_cast<int>(total));
     }
     if (used_.size() < 3)
@@ -254,24 +283,163 @@ class Reconstructor {
               " cross-checked, " + std::to_string(link_stats_.epipolar_passed) + " epipolar)");
   }
 
-  // Linked tracks become points; a point with two observations in one camera and frame (a wrong
-  // link joined two tracks) loses both of them.
+  // --- trifocal check -------------------------------------------------------------------------
+
+  // Per camera and per three consecutive frames of a tracker, the tensor of the tracks through all
+  // three, by RANSAC; a track triple that does not fit marks where the track must be cut. The cut
+  // splits the track rather than dropping one observation: a KLT track that fails goes on from
+  // where it went wrong (it slid onto another surface at an occlusion edge, or onto a repeated
+  // pattern), so everything after the failure follows another scene point, and only a split
+  // keeps each piece on one point. A one-frame glitch costs a two-observation piece, which the
+  // bundle adjustment's outlier test handles.
+  void CheckTrifocal() {
+    const auto t0 = Clock::now();
+    pieces_.assign(segments_.size(), {});
+    TrifocalCheckSummary& sum = out_.trifocal;
+    sum.enabled = options_.trifocal;
+    // failed[s][t]: the first observations (indices into the track) of its triples that failed.
+    std::vector<std::vector<std::vector<int>>> failed(segments_.size());
+    std::vector<std::vector<std::vector<char>>> tested(segments_.size());
+    const double min_z = std::cos(options_.trifocal_max_angle_deg * M_PI / 180);
+    for (size_t s = 0; s < segments_.size(); ++s) {
+      const auto& tracks = segments_[s].tracker->tracks();
+      failed[s].resize(tracks.size());
+      tested[s].resize(tracks.size());
+      for (size_t t = 0; t < tracks.size(); ++t) tested[s][t].assign(tracks[t].observations.size(), 0);
+      if (!options_.trifocal) continue;
+      const double focal = geometry_.focal_px[segments_[s].camera];
+      const int frames = segments_[s].tracker->frame_count();
+      for (int f = 0; f + 2 < frames; ++f) {
+        std::vector<PixelTriple> data;
+        std::vector<std::pair<int, int>> where;  // (track, index of its observation of frame f)
+        for (int t = 0; t < static_cast<int>(tracks.size()); ++t) {
+          const auto& obs = tracks[t].observations;
+          const int i = f - obs.front().frame;
+          if (i < 0 || i + 2 >= static_cast<int>(obs.size())) continue;
+          const Eigen::Vector3d& b1 = obs[i].bearing;
+          const Eigen::Vector3d& b2 = obs[i + 1].bearing;
+          const Eigen::Vector3d& b3 = obs[i + 2].bearing;
+          if (b1.z() < min_z || b2.z() < min_z || b3.z() < min_z) continue;
+          PixelTriple d;
+          d.triple = {b1.head<2>() / b1.z(), b2.head<2>() / b2.z(), b3.head<2>() / b3.z()};
+          // A normalized-plane error e at angle theta from the axis is about e cos^2(theta) as an
+          // angle (radially; tangentially e cos(theta)): the residual in pixels of the fisheye.
+          const double c = (b1.z() + b2.z() + b3.z()) / 3;
+          d.px_per_unit = focal * c * c;
+          data.push_back(d);
+          where.emplace_back(t, i);
+        }
+        if (static_cast<int>(data.size()) < options_.trifocal_min_triples) {
+          ++sum.triples_unchecked;
+          continue;
+        }
+        RansacOptions ro;
+        ro.max_residual = options_.trifocal_threshold_px;
+        ro.max_iterations = 500;
+        ro.random_seed = static_cast<std::uint64_t>(s * 7919 + f);
+        const auto result = Ransac<PixelTrifocalEstimator>(ro).Estimate(data);
+        if (!result.success || result.inlier_ratio() < options_.trifocal_min_inlier_ratio) {
+          ++sum.triples_unchecked;
+          continue;
+        }
+        ++sum.triples_checked;
+        sum.triples_tested += static_cast<long>(data.size());
+        for (size_t k = 0; k < data.size(); ++k) {
+          auto [t, i] = where[k];
+          for (int v = 0; v < 3; ++v) tested[s][t][i + v] = 1;
+          if (!result.inlier_mask[k]) {
+            failed[s][t].push_back(i);
+            ++sum.triples_rejected;
+          }
+        }
+      }
+    }
+    // Greedy cuts: walking a track, a failed triple that lies wholly inside the current piece
+    // starts a new piece at its last observation. A jump between observations j and j + 1 fails
+    // the triples starting at j - 1 and j and is cut exactly there.
+    for (size_t s = 0; s < segments_.size(); ++s) {
+      const auto& tracks = segments_[s].tracker->tracks();
+      pieces_[s].resize(tracks.size());
+      for (size_t t = 0; t < tracks.size(); ++t) {
+        const int n = tracks[t].length();
+        sum.tracks_before += 1;
+        sum.observations_before += n;
+        for (int i = 0; i < n; ++i) sum.untested_observations += tested[s][t][i] ? 0 : 1;
+        std::vector<int> starts = {0};
+        for (int first : failed[s][t])  // ascending
+          if (first >= starts.back()) starts.push_back(first + 2);
+        sum.tracks_split += starts.size() > 1 ? 1 : 0;
+        starts.push_back(n);
+        // A piece of one observation left by a cut cannot be told from the failure itself; a track
+        // that was only ever one observation long stays (a cross-camera link may extend it).
+        const int min_length = starts.size() > 2 ? 2 : 1;
+        for (size_t p = 0; p + 1 < starts.size(); ++p)
+          if (starts[p + 1] - starts[p] >= min_length) {
+            pieces_[s][t].push_back({starts[p], starts[p + 1]});
+            sum.tracks_after += 1;
+            sum.observations_after += starts[p + 1] - starts[p];
+          }
+      }
+    }
+    sum.seconds = Seconds(t0);
+    if (!options_.trifocal) return;
+    Stage("trifocal", t0, static_cast<int>(sum.observations_after),
+          "track observations kept of " + std::to_string(sum.observations_before) + ", " +
+              std::to_string(sum.tracks_before) + " tracks -> " + std::to_string(sum.tracks_after) + " (" +
+              std::to_string(sum.tracks_split) + " split), " + std::to_string(sum.triples_checked) +
+              " frame triples checked, " + std::to_string(sum.triples_unchecked) + " not, " +
+              std::to_string(sum.triples_rejected) + " of " + std::to_string(sum.triples_tested) +
+              " track triples rejected, " + std::to_string(sum.untested_observations) +
+              " observations outside the checked field");
+  }
+
+  // Track pieces become points, joined by the cross-camera links of the frame where the link was
+  // made; a point with two observations in one camera and frame (a wrong link joined two tracks)
+  // loses both of them.
   void BuildPoints() {
+    // Piece ids: one per (segment, track, piece), in order.
+    std::vector<std::vector<int>> first_piece(segments_.size());
+    int next = 0;
+    for (size_t s = 0; s < segments_.size(); ++s) {
+      first_piece[s].resize(pieces_[s].size());
+      for (size_t t = 0; t < pieces_[s].size(); ++t) {
+        first_piece[s][t] = next;
+        next += static_cast<int>(pieces_[s][t].size());
+      }
+    }
+    // The piece of track `key` that holds its observation of sequence frame k, or -1.
+    auto piece_at = [&](long key, int k) {
+      const int s = static_cast<int>(key >> 24), t = static_cast<int>(key & 0xffffff);
+      const int i = k - segments_[s].first_frame - segments_[s].tracker->tracks()[t].observations.front().frame;
+      for (size_t p = 0; p < pieces_[s][t].size(); ++p)
+        if (i >= pieces_[s][t][p].first && i < pieces_[s][t][p].second) return first_piece[s][t] + static_cast<int>(p);
+      return -1;
+    };
+    UnionFind links;
+    int joined = 0;
+    for (const auto& l : link_records_) {
+      const int a = piece_at(l.id_a, l.frame), b = piece_at(l.id_b, l.frame);
+      if (a >= 0 && b >= 0) joined += links.Union(a, b) ? 1 : 0;
+    }
+    out_.cross_camera_links = joined;
     std::map<long, int> point_of_root;
     for (int s = 0; s < static_cast<int>(segments_.size()); ++s) {
       const Segment& seg = segments_[s];
       const auto& tracks = seg.tracker->tracks();
-      for (int t = 0; t < static_cast<int>(tracks.size()); ++t) {
-        const long root = links_.Find(TrackKey(s, t));
-        auto [it, inserted] = point_of_root.emplace(root, static_cast<int>(points_.size()));
-        if (inserted) {
-          points_.emplace_back();
-          points_.back().rgb = seg.colors[t];
+      for (int t = 0; t < static_cast<int>(tracks.size()); ++t)
+        for (size_t p = 0; p < pieces_[s][t].size(); ++p) {
+          const long root = links.Find(first_piece[s][t] + static_cast<int>(p));
+          auto [it, inserted] = point_of_root.emplace(root, static_cast<int>(points_.size()));
+          if (inserted) {
+            points_.emplace_back();
+            points_.back().rgb = seg.colors[t];
+          }
+          MapPoint& mp = points_[it->second];
+          for (int i = pieces_[s][t][p].first; i < pieces_[s][t][p].second; ++i) {
+            const auto& o = tracks[t].observations[i];
+            mp.obs.push_back({seg.first_frame + o.frame, seg.camera, o.pixel, o.bearing, true});
+          }
         }
-        MapPoint& p = points_[it->second];
-        for (const auto& o : tracks[t].observations)
-          p.obs.push_back({seg.first_frame + o.frame, seg.camera, o.pixel, o.bearing, true});
-      }
     }
     int conflicts = 0;
     std::vector<MapPoint> kept;
@@ -293,6 +461,8 @@ class Reconstructor {
     }
     points_ = std::move(kept);
     segments_.clear();  // the trackers' images and tracks are no longer needed
+    pieces_.clear();
+    link_records_.clear();
     if (conflicts > 0)
       Log("points: dropped " + std::to_string(conflicts) + " observations of links that contradict each other");
   }
@@ -744,7 +914,14 @@ class Reconstructor {
   double focal_ = 1;
   Reconstruction out_;
   std::vector<Segment> segments_;
-  UnionFind links_;
+  UnionFind links_;  // of whole tracks: counts the links while tracking
+  struct LinkRecord {
+    long id_a = 0, id_b = 0;
+    int frame = 0;  // sequence frame where the two tracks matched
+  };
+  std::vector<LinkRecord> link_records_;
+  // pieces_[segment][track]: [first, end) observation ranges that survived the trifocal check.
+  std::vector<std::vector<std::vector<std::pair<int, int>>>> pieces_;
   CrossCameraStats link_stats_;
   std::vector<UsedFrame> used_;
   std::vector<UsedFrame> duplicates_;  // duplicate_of: index into used_
@@ -774,6 +951,13 @@ void ReconstructionOptions::Check() const {
   if (!(min_triangulation_angle_deg > 0)) throw Error("min_triangulation_angle_deg", "must be > 0");
   if (!(max_reprojection_px > 0)) throw Error("max_reprojection_px", "must be > 0");
   if (bundle_every < 1) throw Error("bundle_every", "must be >= 1");
+  if (!(trifocal_threshold_px > 0)) throw Error("trifocal_threshold_px", "must be > 0");
+  if (!(trifocal_max_angle_deg > 0 && trifocal_max_angle_deg < 90))
+    throw Error("trifocal_max_angle_deg", "must be in (0, 90): the virtual pinhole sees less than a hemisphere");
+  if (trifocal_min_triples < TrifocalEstimator::kMinimalSample)
+    throw Error("trifocal_min_triples", "must be >= " + std::to_string(TrifocalEstimator::kMinimalSample));
+  if (!(trifocal_min_inlier_ratio >= 0 && trifocal_min_inlier_ratio <= 1))
+    throw Error("trifocal_min_inlier_ratio", "must be in [0, 1]");
 }
 
 Reconstruction Reconstruct(const capture::Rig& rig, capture::Source& source, const ReconstructionOptions& options,

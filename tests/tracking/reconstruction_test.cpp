@@ -80,15 +80,16 @@ TrajectoryErrors Evaluate(const Reconstruction& r, const std::function<bool(cons
 
 bool HaveStreet() { return fs::exists(kStreet / "rig.json"); }
 
-TEST(Reconstruction, StreetEightFramesAllCamerasIsMetricAndAccurate) {
-  // Measured: ATE 0.04 % of the 3.4 m path, scale error 0.01 %, 0.56 px RMSE (RelWithDebInfo).
+TEST(Reconstruction, StreetSixFramesAllCamerasIsMetricAndAccurate) {
+  // Measured: ATE 0.03 % of the 2.45 m path, scale error 0.28 %, 0.56 px RMSE (RelWithDebInfo, the
+  // trifocal check on). Six frames, not more: the file must stay quick under the sanitizers.
   if (!HaveStreet()) GTEST_SKIP() << kStreet << " absent";
-  const Frames frames("street8", {0, 1, 2, 3, 4, 5}, 8);
+  const Frames frames("street6", {0, 1, 2, 3, 4, 5}, 6);
   const Reconstruction r = frames.Run();
   for (const auto& s : r.stages)
     std::cout << s.name << ": " << s.seconds << " s, " << s.inliers << " " << s.what << "\n";
   std::cout << "RMSE " << r.rmse_px << " px, scale x" << r.scale_applied << ", " << r.points.size() << " points\n";
-  ASSERT_EQ(r.frames.size(), 8u);
+  ASSERT_EQ(r.frames.size(), 6u);
   const TrajectoryErrors e = Evaluate(r);
   EXPECT_LT(e.ate_percent, 0.3);
   EXPECT_LT(e.scale_error, 0.015);
