@@ -25,8 +25,10 @@ CommandFn AddLight(CLI::App* sub);
 CommandFn AddRender(CLI::App* sub);
 CommandFn AddReconstruct(CLI::App* sub);
 CommandFn AddBench(CLI::App* sub);
+CommandFn AddExport(CLI::App* sub);
 CommandFn AddBenchLight(CLI::App* sub);
 CommandFn AddBenchStitch(CLI::App* sub);
+CommandFn AddBenchPlayer(CLI::App* sub);
 
 // media/demo/street.mp4 beside the sources or the working directory; throws if absent.
 std::string DefaultDemoVideo();

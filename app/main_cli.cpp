@@ -19,6 +19,7 @@ const std::vector<CommandSpec>& Commands() {
        AddRender},
       {"reconstruct", "Structure from motion of the rig: trajectory, sparse model, road plane, metric scale",
        AddReconstruct},
+      {"export", "Write an augmented clip: the car driven along a path through the video, lit by it", AddExport},
       {"bench", "Benchmarks: speed beside error, as tables and plots in docs/benchmarks", AddBench},
   };
   return commands;

@@ -274,8 +274,9 @@ bool DisplayAvailable() {
 
 PlayerReport RunPlayer(const PlayerOptions& options) {
   options.Check();
-  if (options.headless || !DisplayAvailable()) return RunHeadless(options);
-  return RunWindow(options);
+  const bool headless = options.headless || !DisplayAvailable();
+  if (!options.trajectory.empty()) return headless ? RunAugmentedHeadless(options) : RunAugmentedWindow(options);
+  return headless ? RunHeadless(options) : RunWindow(options);
 }
 
 }  // namespace odvr::app

@@ -3,6 +3,7 @@
 // overlay of per-stage timings. With a display it opens a GLFW window; without one it renders
 // frames to PNG files and says where.
 #include <string>
+#include <vector>
 
 #include "app/view_controller.h"
 
@@ -19,12 +20,30 @@ struct PlayerOptions {
   ViewState view;
   double quit_after_s = 0;  // window mode: close by itself after this long (tests, demos)
   std::string screenshot;   // window mode: PNG of the last frame shown before quitting
-  void Check() const;       // throws odvr::UsageError
+  // Augmented mode (a car on the road), when `trajectory` is set (app/augmented_scene.h).
+  std::string trajectory, car;
+  double car_start_m = -1;     // arc length along the camera path; < 0: the view distance
+  double view_distance_m = 6;  // the viewer trails the car by this much
+  std::string drive;           // scripted keys, e.g. "W:2s,A:1s" (headless, tests, demos)
+  int lighting_levels = 4;     // HEALPix levels of the car's light
+  int voxels = 64;             // visibility grid per side
+  std::string resize;          // window: WxH to resize to halfway through --quit-after (tests)
+  void Check() const;          // throws odvr::UsageError
 };
 
 // Per-stage milliseconds of the last frame (the overlay and --json).
 struct FrameTimings {
   double decode_ms = 0, upload_ms = 0, render_ms = 0, total_ms = 0;
+  double lighting_ms = 0, composite_ms = 0;  // augmented mode
+};
+
+// Augmented mode, per shown frame (for --json and the tests).
+struct AugmentedFrameRecord {
+  int view_frame = 0, light_frame = 0;
+  double car_x = 0, car_z = 0;      // world (Y up)
+  double car_px = -1, car_py = -1;  // projection of the car's centre
+  int car_pixels = 0;
+  std::string file;  // headless PNG
 };
 
 struct PlayerReport {
@@ -33,9 +52,14 @@ struct PlayerReport {
   std::string output_dir;
   double median_total_ms = 0;
   FrameTimings last;
+  FrameTimings median;  // per stage
+  std::vector<AugmentedFrameRecord> frames;
 };
 
 PlayerReport RunPlayer(const PlayerOptions& options);
+// The augmented loops (app/augmented_player.cpp), chosen by RunPlayer when a trajectory is set.
+PlayerReport RunAugmentedHeadless(const PlayerOptions& options);
+PlayerReport RunAugmentedWindow(const PlayerOptions& options);
 
 // True when a window can be opened (an X or Wayland display is set).
 bool DisplayAvailable();

@@ -13,6 +13,8 @@ CommandFn AddBench(CLI::App* sub) {
   static const Kind kinds[] = {
       {"light", "Lighting transform: errors and time per level, against least squares and SH", AddBenchLight},
       {"stitch", "Stitching: time and PSNR against the street ground truth, beside OpenCV's pipeline", AddBenchStitch},
+      {"player", "Player: the augmented frame budget (decode, lighting, render, composite) on the demo",
+       AddBenchPlayer},
   };
   auto runners = std::make_shared<std::vector<std::pair<CLI::App*, CommandFn>>>();
   for (const auto& k : kinds) {

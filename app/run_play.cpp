@@ -13,6 +13,7 @@ struct PlayCommand {
   PlayerOptions options;
   std::string size = "1280x720";
   bool json = false;
+  bool no_car = false;
 };
 
 void ParseSize(const std::string& text, int* w, int* h) {
@@ -26,20 +27,48 @@ void ParseSize(const std::string& text, int* w, int* h) {
 
 int RunPlay(PlayCommand& c) {
   ParseSize(c.size, &c.options.width, &c.options.height);
-  if (c.options.video.empty()) c.options.video = DefaultDemoVideo();
+  if (c.options.video.empty()) {
+    // No video: the demo, with its trajectory and car unless --no-car.
+    c.options.video = DefaultDemoVideo();
+    const auto demo = std::filesystem::path(c.options.video).parent_path();
+    if (!c.no_car && c.options.trajectory.empty()) c.options.trajectory = (demo / "trajectory_gt.json").string();
+    if (!c.no_car && c.options.car.empty()) c.options.car = (demo / "car.glb").string();
+  }
+  if (!c.options.car.empty() && c.options.trajectory.empty())
+    throw UsageError("--car", "needs --trajectory (the camera poses that place the car on the road)");
+  if (!c.options.trajectory.empty() && c.options.car.empty())
+    throw UsageError("--trajectory", "needs --car (a glTF 2.0 model)");
   const PlayerReport r = RunPlayer(c.options);
   if (c.json) {
-    std::cout << nlohmann::json{{"mode", r.mode},
-                                {"frames_shown", r.frames_shown},
-                                {"output_dir", r.output_dir},
-                                {"median_total_ms", r.median_total_ms},
-                                {"last_frame_ms",
-                                 {{"decode", r.last.decode_ms},
-                                  {"upload", r.last.upload_ms},
-                                  {"render", r.last.render_ms},
-                                  {"total", r.last.total_ms}}}}
-                     .dump(2)
-              << "\n";
+    nlohmann::json j{{"mode", r.mode},
+                     {"augmented", !c.options.trajectory.empty()},
+                     {"size", {c.options.width, c.options.height}},
+                     {"frames_shown", r.frames_shown},
+                     {"output_dir", r.output_dir},
+                     {"median_total_ms", r.median_total_ms},
+                     {"median_ms",
+                      {{"decode", r.median.decode_ms},
+                       {"lighting", r.median.lighting_ms},
+                       {"render", r.median.render_ms},
+                       {"composite", r.median.composite_ms},
+                       {"total", r.median.total_ms}}},
+                     {"last_frame_ms",
+                      {{"decode", r.last.decode_ms},
+                       {"upload", r.last.upload_ms},
+                       {"lighting", r.last.lighting_ms},
+                       {"render", r.last.render_ms},
+                       {"composite", r.last.composite_ms},
+                       {"total", r.last.total_ms}}}};
+    nlohmann::json frames = nlohmann::json::array();
+    for (const auto& f : r.frames)
+      frames.push_back({{"view_frame", f.view_frame},
+                        {"light_frame", f.light_frame},
+                        {"car_world_xz", {f.car_x, f.car_z}},
+                        {"car_pixel", {f.car_px, f.car_py}},
+                        {"car_pixels", f.car_pixels},
+                        {"file", f.file}});
+    j["frames"] = frames;
+    std::cout << j.dump(2) << "\n";
   } else if (r.mode == "headless") {
     std::cout << "no display: rendered " << r.frames_shown << " frames to "
               << std::filesystem::absolute(r.output_dir).string() << " (median " << r.median_total_ms
@@ -73,6 +102,16 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_flag("!--no-loop", o.loop, "Stop at the end instead of looping");
   sub->add_option("--quit-after", o.quit_after_s, "Window: close after this many seconds");
   sub->add_option("--screenshot", o.screenshot, "Window: save the last frame shown to this PNG");
+  sub->add_option("--trajectory", o.trajectory, "Augmented mode: camera poses (trajectory.json) placing the car");
+  sub->add_option("--car", o.car, "Augmented mode: the car, a glTF 2.0 model (.glb/.gltf)");
+  sub->add_option("--car-start", o.car_start_m, "Car's start: arc length along the camera path in metres");
+  sub->add_option("--view-distance", o.view_distance_m, "The viewer's frame trails the car by this many metres")
+      ->capture_default_str();
+  sub->add_option("--drive", o.drive, "Scripted keys, e.g. \"W:2s,A:1s,-:0.5s\" (W/A/S/D, - none)");
+  sub->add_option("--levels", o.lighting_levels, "Car light: HEALPix levels (1..6)")->capture_default_str();
+  sub->add_option("--voxels", o.voxels, "Car visibility grid per side (64, 128, 256)")->capture_default_str();
+  sub->add_flag("--no-car", c->no_car, "Play the demo without its car");
+  sub->add_option("--resize", o.resize, "Window: resize to WxH halfway through --quit-after (tests)");
   sub->add_flag("--json", c->json, "Print a JSON report");
   return [c] { return RunPlay(*c); };
 }

@@ -1,0 +1,274 @@
+// The player's augmented mode: the car on the road of a recorded street (app/augmented_scene.h),
+// in a window driven by WASD/arrows or headless to PNG frames with a scripted drive.
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+#include <imgui.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "app/augmented_scene.h"
+#include "app/bench_common.h"
+#include "app/player.h"
+#include "engine/core/atomic_file.h"
+#include "engine/core/error.h"
+#include "engine/gl/context.h"
+#include "engine/gl/objects.h"
+#include "engine/image/image_io.h"
+
+namespace odvr::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+AugmentedOptions SceneOptions(const PlayerOptions& o) {
+  AugmentedOptions a;
+  a.video = o.video;
+  a.trajectory = o.trajectory;
+  a.car = o.car;
+  a.car_start_m = o.car_start_m;
+  a.picker.view_distance_m = o.view_distance_m;
+  a.lighting_levels = o.lighting_levels;
+  a.voxel_resolution = o.voxels;
+  a.vfov_deg = std::clamp(o.view.fov_deg, 30.0, 150.0);
+  a.exposure = o.exposure;
+  return a;
+}
+
+FrameTimings Timings(const AugmentedFrame& f) {
+  FrameTimings t;
+  t.decode_ms = f.ms.decode;
+  t.lighting_ms = f.ms.lighting;
+  t.render_ms = f.ms.render;
+  t.composite_ms = f.ms.composite;
+  t.total_ms = f.ms.total;
+  return t;
+}
+
+AugmentedFrameRecord Record(const AugmentedFrame& f) {
+  AugmentedFrameRecord r;
+  r.view_frame = f.view_frame;
+  r.light_frame = f.light_frame;
+  r.car_x = f.car_position.x;
+  r.car_z = f.car_position.z;
+  r.car_px = f.car_in_front ? f.car_pixel.x : -1;
+  r.car_py = f.car_in_front ? f.car_pixel.y : -1;
+  r.car_pixels = f.car_pixels;
+  return r;
+}
+
+void Medians(const std::vector<FrameTimings>& all, PlayerReport* report) {
+  auto median = [&](double FrameTimings::*field) {
+    std::vector<double> v;
+    for (const auto& t : all) v.push_back(t.*field);
+    return Median(v);
+  };
+  report->median.decode_ms = median(&FrameTimings::decode_ms);
+  report->median.lighting_ms = median(&FrameTimings::lighting_ms);
+  report->median.render_ms = median(&FrameTimings::render_ms);
+  report->median.composite_ms = median(&FrameTimings::composite_ms);
+  report->median.total_ms = median(&FrameTimings::total_ms);
+  report->median_total_ms = report->median.total_ms;
+  if (!all.empty()) report->last = all.back();
+}
+
+// 8-bit sRGB RGB rows of a linear image (what the window shows).
+std::vector<std::uint8_t> ToSrgb8(const sphere::EquirectImage& image) {
+  static const std::vector<std::uint8_t> lut = [] {
+    std::vector<std::uint8_t> l(4096);
+    for (int i = 0; i < 4096; ++i)
+      l[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(std::lround(255 * image::LinearToSrgb(i / 4095.f)));
+    return l;
+  }();
+  std::vector<std::uint8_t> out(image.rgb.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const float v = std::clamp(image.rgb[i], 0.f, 1.f);
+    out[i] = lut[static_cast<std::size_t>(v * 4095 + 0.5f)];
+  }
+  return out;
+}
+
+std::pair<int, int> ParseResize(const std::string& text) {
+  int a = 0, b = 0;
+  char x = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X') || a < 1 || b < 1)
+    throw UsageError("--resize", "expects WIDTHxHEIGHT (at least 1x1), got '" + text + "'");
+  return {a, b};
+}
+
+}  // namespace
+
+PlayerReport RunAugmentedHeadless(const PlayerOptions& o) {
+  gl::HeadlessContext context;
+  AugmentedScene scene(SceneOptions(o));
+  const auto script = o.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(o.drive);
+  const double dt = 1.0 / (scene.fps() > 0 ? scene.fps() : 25.0);
+  int frames = o.headless_frames;
+  if (frames <= 0)
+    frames = script.empty() ? static_cast<int>(scene.frames().size())
+                            : std::max(1, static_cast<int>(std::ceil(DriveDuration(script) / dt - 1e-9)) + 1);
+  PlayerReport report;
+  report.mode = "headless";
+  report.output_dir = o.out_dir;
+  std::filesystem::create_directories(o.out_dir);
+  std::vector<FrameTimings> all;
+  const AugmentedView view{o.view.yaw_deg, o.view.pitch_deg, 0, true};
+  for (int i = 0; i < frames; ++i) {
+    // Frame i shows the car after i steps of the script.
+    if (i > 0) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
+    const AugmentedFrame f = scene.Render(o.width, o.height, view, i > 0 ? dt : 0);
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%06d.png", i);
+    const auto path = std::filesystem::path(o.out_dir) / name;
+    image::SaveImage(path, f.image);
+    all.push_back(Timings(f));
+    report.frames.push_back(Record(f));
+    report.frames.back().file = path.string();
+    ++report.frames_shown;
+  }
+  Medians(all, &report);
+  return report;
+}
+
+PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
+  gl::WindowContext window(o.width, o.height, "odvr — " + o.video);
+  GLFWwindow* w = window.window();
+  AugmentedScene scene(SceneOptions(o));
+  const auto script = o.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(o.drive);
+  std::pair<int, int> resize{0, 0};
+  if (!o.resize.empty()) resize = ParseResize(o.resize);
+  glfwSwapInterval(0);  // the frame takes what it takes; vsync would only add to it
+
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;
+  ImGui_ImplGlfw_InitForOpenGL(w, true);
+  ImGui_ImplOpenGL3_Init("#version 450");
+  double scroll = 0;
+  glfwSetWindowUserPointer(w, &scroll);
+  glfwSetScrollCallback(w, [](GLFWwindow* win, double dx, double dy) {
+    ImGui_ImplGlfw_ScrollCallback(win, dx, dy);
+    if (!ImGui::GetIO().WantCaptureMouse) *static_cast<double*>(glfwGetWindowUserPointer(win)) += dy;
+  });
+  glfwSetKeyCallback(w, [](GLFWwindow* win, int key, int scancode, int action, int mods) {
+    ImGui_ImplGlfw_KeyCallback(win, key, scancode, action, mods);
+    if (action == GLFW_PRESS && (key == GLFW_KEY_ESCAPE || key == GLFW_KEY_Q)) glfwSetWindowShouldClose(win, GLFW_TRUE);
+  });
+
+  PlayerReport report;
+  report.mode = "window";
+  std::vector<FrameTimings> all;
+  AugmentedView view{o.view.yaw_deg, o.view.pitch_deg, std::clamp(o.view.fov_deg, 30.0, 150.0), true};
+  gl::Texture shown{gl::NoCreate};
+  gl::Framebuffer read_fbo;
+  int shown_w = 0, shown_h = 0;
+  double last_x = 0, last_y = 0;
+  bool dragging = false, resized = false;
+  const auto start = Clock::now();
+  auto previous = start;
+  AugmentedFrame frame;
+  while (!glfwWindowShouldClose(w)) {
+    glfwPollEvents();
+    const auto now = Clock::now();
+    const double dt = std::chrono::duration<double>(now - previous).count();
+    const double t = std::chrono::duration<double>(now - start).count();
+    previous = now;
+    const bool keys_free = !ImGui::GetIO().WantCaptureKeyboard;
+    auto held = [&](int a, int b) {
+      return keys_free && (glfwGetKey(w, a) == GLFW_PRESS || glfwGetKey(w, b) == GLFW_PRESS);
+    };
+    CarInput input = DriveInputAt(script, t);
+    input.forward |= held(GLFW_KEY_W, GLFW_KEY_UP);
+    input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
+    input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
+    input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
+    scene.Drive(input, dt);
+
+    int fb_w = 0, fb_h = 0;
+    glfwGetFramebufferSize(w, &fb_w, &fb_h);
+    double x, y;
+    glfwGetCursorPos(w, &x, &y);
+    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS && (dragging || !ImGui::GetIO().WantCaptureMouse)) {
+      if (dragging && fb_h > 0) {  // a drag across the window's height turns by the field of view
+        view.yaw_deg -= (x - last_x) * view.vfov_deg / fb_h;
+        view.pitch_deg = std::clamp(view.pitch_deg + (y - last_y) * view.vfov_deg / fb_h, -90.0, 90.0);
+      }
+      dragging = true;
+    } else {
+      dragging = false;
+    }
+    last_x = x;
+    last_y = y;
+    view.vfov_deg = std::clamp(view.vfov_deg * std::pow(0.95, std::exchange(scroll, 0.0)), 30.0, 150.0);
+
+    if (fb_w > 0 && fb_h > 0) {
+      // The renderer's smallest useful picture; a tiny window shows it scaled down.
+      const int rw = std::max(fb_w, 16), rh = std::max(fb_h, 16);
+      frame = scene.Render(rw, rh, view, dt);
+      all.push_back(Timings(frame));
+      report.frames.push_back(Record(frame));
+      const auto srgb = ToSrgb8(frame.image);
+      if (shown_w != rw || shown_h != rh) {
+        shown = gl::Texture::Create2D(GL_RGBA8, rw, rh);
+        read_fbo.AttachColor(shown);
+        shown_w = rw;
+        shown_h = rh;
+      }
+      glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+      shown.Upload2D(GL_RGB, GL_UNSIGNED_BYTE, srgb.data());
+      glBindFramebuffer(GL_FRAMEBUFFER, 0);
+      glViewport(0, 0, fb_w, fb_h);
+      // Rows were uploaded top first; the window's y grows upward: flip in the blit.
+      glBlitNamedFramebuffer(read_fbo.id(), 0, 0, 0, rw, rh, 0, fb_h, fb_w, 0, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+
+      ImGui_ImplOpenGL3_NewFrame();
+      ImGui_ImplGlfw_NewFrame();
+      ImGui::NewFrame();
+      ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
+      ImGui::SetNextWindowBgAlpha(0.6f);
+      ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+      ImGui::Text("frame %d (light %d)   car %.1f km/h", frame.view_frame, frame.light_frame,
+                  scene.car().state().speed_mps * 3.6);
+      ImGui::Text("decode %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.decode, frame.ms.lighting,
+                  frame.ms.render, frame.ms.composite);
+      ImGui::Text("total %.1f ms  (%.1f fps)", frame.ms.total, frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0);
+      ImGui::Text("WASD/arrows drive, drag looks, scroll zooms, Esc quits");
+      ImGui::End();
+      ImGui::Render();
+      ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+    }
+    ++report.frames_shown;
+    if (resize.first > 0 && !resized && t > 0.5 * o.quit_after_s) {
+      glfwSetWindowSize(w, resize.first, resize.second);
+      resized = true;
+    }
+    const bool quitting = o.quit_after_s > 0 && t > o.quit_after_s;
+    if (quitting && !o.screenshot.empty() && fb_w > 0 && fb_h > 0) {
+      std::vector<unsigned char> rgba(static_cast<std::size_t>(fb_w) * fb_h * 4);
+      glPixelStorei(GL_PACK_ALIGNMENT, 1);
+      glReadPixels(0, 0, fb_w, fb_h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+      cv::Mat image(fb_h, fb_w, CV_8UC4, rgba.data()), bgr;
+      cv::cvtColor(image, bgr, cv::COLOR_RGBA2BGR);
+      cv::flip(bgr, bgr, 0);
+      WriteFileAtomically(o.screenshot, [&](const std::filesystem::path& tmp) {
+        if (!cv::imwrite(tmp.string(), bgr)) throw Error(o.screenshot, "cannot write PNG");
+      });
+    }
+    glfwSwapBuffers(w);
+    if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
+  }
+  ImGui_ImplOpenGL3_Shutdown();
+  ImGui_ImplGlfw_Shutdown();
+  ImGui::DestroyContext();
+  Medians(all, &report);
+  return report;
+}
+
+}  // namespace odvr::app

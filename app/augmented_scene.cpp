@@ -1,0 +1,475 @@
+#include "app/augmented_scene.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "app/frame_decoder.h"
+#include "capture/source.h"
+#include "engine/core/error.h"
+#include "engine/image/image_io.h"
+#include "engine/lighting/lighting_builder.h"
+#include "engine/scene/gltf_scene.h"
+#include "engine/sphere/equirect.h"
+#include "tracking/evaluation.h"
+
+namespace odvr::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+// Blender/dataset world (Z up) → odvr's (Y up): (x, y, z) → (x, z, −y).
+const glm::dmat3 kYupFromZup = glm::transpose(glm::dmat3(1, 0, 0, 0, 0, 1, 0, -1, 0));
+
+double ParseDuration(const std::string& text, const std::string& step) {
+  std::string number = text;
+  double scale = 1;
+  if (number.size() > 2 && number.substr(number.size() - 2) == "ms") {
+    number.resize(number.size() - 2);
+    scale = 1e-3;
+  } else if (!number.empty() && number.back() == 's') {
+    number.pop_back();
+  }
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(number, &used) * scale;
+    if (used != number.size() || !std::isfinite(v) || v < 0) throw std::invalid_argument(text);
+    return v;
+  } catch (const std::exception&) {
+    throw UsageError("--drive", "'" + step + "': the duration must be like 2s, 500ms or 1.5");
+  }
+}
+
+}  // namespace
+
+std::vector<DriveStep> ParseDriveScript(const std::string& text) {
+  std::vector<DriveStep> script;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find(',', start), text.size());
+    const std::string step = text.substr(start, end - start);
+    start = end + 1;
+    if (step.empty()) {
+      if (end >= text.size()) break;
+      throw UsageError("--drive", "empty step in '" + text + "'");
+    }
+    const auto colon = step.find(':');
+    if (colon == std::string::npos) throw UsageError("--drive", "'" + step + "': want KEYS:DURATION, e.g. W:2s");
+    DriveStep s;
+    for (const char c : step.substr(0, colon)) {
+      switch (std::toupper(static_cast<unsigned char>(c))) {
+        case 'W':
+          s.input.forward = true;
+          break;
+        case 'S':
+          s.input.backward = true;
+          break;
+        case 'A':
+          s.input.left = true;
+          break;
+        case 'D':
+          s.input.right = true;
+          break;
+        case '-':
+          break;
+        default:
+          throw UsageError("--drive", "'" + step + "': keys are W, A, S, D or - (none)");
+      }
+    }
+    s.seconds = ParseDuration(step.substr(colon + 1), step);
+    script.push_back(s);
+    if (end >= text.size()) break;
+  }
+  return script;
+}
+
+CarInput DriveInputAt(const std::vector<DriveStep>& script, double t_s) {
+  double t = 0;
+  for (const auto& s : script) {
+    if (t_s < t + s.seconds) return s.input;
+    t += s.seconds;
+  }
+  return {};
+}
+
+double DriveDuration(const std::vector<DriveStep>& script) {
+  double t = 0;
+  for (const auto& s : script) t += s.seconds;
+  return t;
+}
+
+void AugmentedOptions::Check() const {
+  if (video.empty()) throw UsageError("--video", "is required");
+  if (trajectory.empty()) throw UsageError("--trajectory", "is required in augmented mode");
+  if (car.empty()) throw UsageError("--car", "is required in augmented mode");
+  if (!(light_smoothing_s >= 0)) throw UsageError("light smoothing", "must be non-negative");
+  if (lighting_levels < 1 || lighting_levels > 6) throw UsageError("--levels", "must be 1..6");
+  if (voxel_resolution != 64 && voxel_resolution != 128 && voxel_resolution != 256)
+    throw UsageError("--voxels", "must be 64, 128 or 256");
+  if (!(vfov_deg >= 10 && vfov_deg <= 150)) throw UsageError("--fov", "must be 10..150 degrees");
+  if (!(exposure > 0)) throw UsageError("--exposure", "must be positive");
+  if (lighting_width < 16 || lighting_width % 2) throw UsageError("lighting width", "must be even and at least 16");
+  if (frame_cache < 2) throw UsageError("frame cache", "must hold at least 2 frames");
+  picker.Check();
+}
+
+struct AugmentedScene::Impl {
+  std::unique_ptr<FrameDecoder> decoder;
+  long announced_frames = 0;
+  std::vector<glm::dmat3> world_from_pano;  // per kept frame: C R Cᵀ
+  std::vector<glm::dvec3> positions;        // rig centres, Y-up world
+  double rig_height = 0;                    // mean height of the rig above the road
+
+  struct Cached {
+    cv::Mat rgb8;  // RGB, top row first
+    long used = 0;
+  };
+  std::map<int, Cached> panos;
+  long use_clock = 0;
+  std::map<int, lighting::SgLighting> lights;
+  std::unique_ptr<lighting::LightingBuilder> builder;
+
+  scene::GltfScene model;
+  std::unique_ptr<render::TripleProductRenderer> renderer;
+  glm::dvec3 car_centre{0};  // bounding-box middle in the car frame
+  LightWeightSmoother smoother;
+
+  int padded_frame = -1;  // which view frame `padded` holds
+  cv::Mat padded;         // linear float RGB, one wrapped column each side, one replicated row
+  sphere::EquirectImage last_background;
+
+  // Linear float RGB of an 8-bit sRGB image.
+  static cv::Mat Linear(const cv::Mat& rgb8) {
+    static const cv::Mat lut = [] {
+      cv::Mat l(1, 256, CV_32F);
+      for (int i = 0; i < 256; ++i) l.at<float>(i) = image::SrgbToLinear(i / 255.f);
+      return l;
+    }();
+    cv::Mat f;
+    rgb8.convertTo(f, CV_32F);
+    f.forEach<cv::Vec3f>([](cv::Vec3f& p, const int*) {
+      for (int c = 0; c < 3; ++c) p[c] = lut.at<float>(static_cast<int>(p[c]));
+    });
+    return f;
+  }
+};
+
+AugmentedScene::AugmentedScene(AugmentedOptions options)
+    : options_(std::move(options)), impl_(std::make_unique<Impl>()) {
+  options_.Check();
+  Impl& im = *impl_;
+  im.smoother = LightWeightSmoother(options_.light_smoothing_s);
+  if (!std::filesystem::exists(options_.car))
+    throw Error(options_.car, "car model not found (a glTF 2.0 .glb or .gltf is needed for --car)");
+  im.model = scene::LoadGltfScene(options_.car);
+  if (im.model.triangle_count() == 0) throw Error(options_.car, "the car model has no triangles");
+  const auto poses = tracking::LoadTrajectoryJson(options_.trajectory);
+
+  im.decoder = std::make_unique<FrameDecoder>(capture::OpenSource(options_.video), 8);
+  if (im.decoder->camera_count() != 1)
+    throw Error(options_.video, "has " + std::to_string(im.decoder->camera_count()) +
+                                    " cameras: augmented playback needs equirectangular frames (odvr stitch)");
+  im.announced_frames = im.decoder->frame_count();
+
+  // Frames with both a pose and a picture; the rest of either is ignored.
+  std::map<long, const tracking::TrajectoryPose*> by_index;
+  for (const auto& p : poses) by_index[p.index] = &p;
+  for (const auto& [index, p] : by_index) {
+    if (index < 0 || index >= im.announced_frames) continue;
+    glm::dmat3 r;
+    glm::dvec3 t;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) r[j][i] = p->world_from_rig(i, j);
+      t[i] = p->world_from_rig(i, 3);
+    }
+    frame_index_.push_back(static_cast<int>(index));
+    im.world_from_pano.push_back(kYupFromZup * r * glm::transpose(kYupFromZup));
+    im.positions.push_back(kYupFromZup * t);
+  }
+  if (frame_index_.empty())
+    throw Error(options_.trajectory, "shares no frame index with " + options_.video + " (" +
+                                         std::to_string(im.announced_frames) + " frames)");
+  for (const auto& p : im.positions) im.rig_height += p.y / static_cast<double>(im.positions.size());
+  picker_ = std::make_unique<FramePicker>(im.positions, options_.picker);
+
+  lighting::LightingOptions lo;
+  lo.transform.levels = options_.lighting_levels;
+  lo.peak_grid_width = options_.lighting_width;
+  im.builder = std::make_unique<lighting::LightingBuilder>(lo);
+
+  render::RenderOptions ro;
+  ro.lighting_levels = options_.lighting_levels;
+  ro.voxel_resolution = options_.voxel_resolution;
+  ro.cone_rings = options_.cone_rings;
+  im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
+  glm::dvec3 lo_b(1e300), hi_b(-1e300);
+  for (const auto& v : im.renderer->world_triangles()) {
+    lo_b = glm::min(lo_b, glm::dvec3(v));
+    hi_b = glm::max(hi_b, glm::dvec3(v));
+  }
+  im.car_centre = 0.5 * (lo_b + hi_b);
+
+  car_ = std::make_unique<CarController>(GroundPlane{{0, 1, 0}, 0});
+  PlaceCar(options_.car_start_m >= 0 ? options_.car_start_m : options_.picker.view_distance_m, options_.lateral_m);
+}
+
+AugmentedScene::~AugmentedScene() = default;
+
+double AugmentedScene::fps() const { return impl_->decoder->fps(); }
+long AugmentedScene::video_frames() const { return impl_->decoder->available_frames(); }
+
+void AugmentedScene::PlaceCar(double s_m, double lateral_m) {
+  const auto& p = impl_->positions;
+  glm::dvec3 pos = p[0], dir{1, 0, 0};
+  if (p.size() == 1) {
+    dir = impl_->world_from_pano[0] * glm::dvec3(0, 0, -1);  // the panorama's forward (equirect −z)
+  } else {
+    s_m = std::clamp(s_m, 0.0, picker_->path_length());
+    double s = 0;
+    for (std::size_t i = 0; i + 1 < p.size(); ++i) {
+      const double len = glm::distance(p[i], p[i + 1]);
+      if (len <= 0) continue;
+      dir = (p[i + 1] - p[i]) / len;
+      if (s + len >= s_m || i + 2 == p.size()) {
+        pos = p[i] + std::min(s_m - s, len) * dir;
+        break;
+      }
+      s += len;
+    }
+  }
+  dir.y = 0;
+  if (glm::length(dir) < 1e-9) dir = {1, 0, 0};
+  dir = glm::normalize(dir);
+  const glm::dvec3 left = glm::cross(glm::dvec3(0, 1, 0), dir);
+  car_->Reset(pos + lateral_m * left, dir);
+}
+
+void AugmentedScene::TeleportCar(const glm::dvec3& world_position) {
+  car_->Reset(world_position, car_->state().forward);
+}
+
+void AugmentedScene::Drive(const CarInput& input, double dt_s) {
+  // Steps of at most 20 ms: the controller clamps longer steps, which would slow a scripted drive.
+  while (dt_s > 0) {
+    const double dt = std::min(dt_s, 0.02);
+    car_->Step(input, dt);
+    dt_s -= dt;
+  }
+}
+
+const lighting::SgLighting& AugmentedScene::FrameLighting(int frame) {
+  Impl& im = *impl_;
+  if (auto it = im.lights.find(frame); it != im.lights.end()) return it->second;
+  auto pano = im.panos.find(frame);
+  if (pano == im.panos.end()) {
+    auto f = im.decoder->Get(frame, std::chrono::seconds(20));
+    if (!f || f->index != frame || f->set.frames[0].image.empty())
+      throw Error(options_.video, "frame " + std::to_string(frame) + " cannot be decoded");
+    cv::Mat rgb;
+    cv::cvtColor(f->set.frames[0].image, rgb, cv::COLOR_BGR2RGB);
+    pano = im.panos.emplace(frame, Impl::Cached{rgb, ++im.use_clock}).first;
+  }
+  cv::Mat lin = Impl::Linear(pano->second.rgb8);
+  if (lin.cols > options_.lighting_width) {
+    cv::Mat small;
+    cv::resize(lin, small, cv::Size(options_.lighting_width, options_.lighting_width / 2), 0, 0, cv::INTER_AREA);
+    lin = small;
+  }
+  sphere::EquirectImage e(lin.cols, lin.rows);
+  std::memcpy(e.rgb.data(), lin.ptr<float>(), e.rgb.size() * sizeof(float));
+  return im.lights.emplace(frame, im.builder->Build(e)).first->second;
+}
+
+AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView& view, double dt_s) {
+  if (width < 1 || height < 1) throw Error("augmented view", "size must be at least 1x1");
+  Impl& im = *impl_;
+  AugmentedFrame out;
+  const auto t_total = Clock::now();
+  // A file that turned out shorter than announced: drop the poses past its real end, so that
+  // the picker stops choosing frames that are not there (the car may still drive on).
+  const long available = im.decoder->available_frames();
+  if (available < im.announced_frames && frame_index_.back() >= available) {
+    std::size_t keep = 0;
+    while (keep < frame_index_.size() && frame_index_[keep] < available) ++keep;
+    if (keep == 0) throw Error(options_.video, "ends before the first frame of the trajectory");
+    frame_index_.resize(keep);
+    im.positions.resize(keep);
+    im.world_from_pano.resize(keep);
+    picker_ = std::make_unique<FramePicker>(im.positions, options_.picker);
+    im.smoother = LightWeightSmoother(options_.light_smoothing_s);
+  }
+  const CarState& car = car_->state();
+  out.car_position = car.position;
+
+  // Which frames: the viewer's and the car's light.
+  const glm::dvec3 car_at_rig_height = car.position + glm::dvec3(0, im.rig_height, 0);
+  int view_k = picker_->ViewFrame(car_at_rig_height);
+  const int light_k = picker_->NearestFrame(car_at_rig_height);
+  const auto target = picker_->LightWeights(car_at_rig_height);
+
+  // Decode what is not cached, in frame order so that the decoder mostly reads ahead.
+  auto t0 = Clock::now();
+  std::vector<int> wanted{frame_index_[static_cast<std::size_t>(view_k)]};
+  for (const auto& [k, w] : target) wanted.push_back(frame_index_[static_cast<std::size_t>(k)]);
+  std::sort(wanted.begin(), wanted.end());
+  std::map<int, bool> ok;
+  for (const int frame : wanted) {
+    auto it = im.panos.find(frame);
+    if (it != im.panos.end()) {
+      it->second.used = ++im.use_clock;
+      ok[frame] = true;
+      continue;
+    }
+    auto f = im.decoder->Get(frame, std::chrono::seconds(20));
+    // A truncated file hands back its last good frame for anything past its end.
+    ok[frame] = f && f->index == frame && !f->set.frames[0].image.empty();
+    if (!ok[frame]) continue;
+    cv::Mat rgb;
+    cv::cvtColor(f->set.frames[0].image, rgb, cv::COLOR_BGR2RGB);
+    im.panos[frame] = Impl::Cached{rgb, ++im.use_clock};
+    while (im.panos.size() > options_.frame_cache) {
+      auto oldest = std::min_element(im.panos.begin(), im.panos.end(),
+                                     [](const auto& a, const auto& b) { return a.second.used < b.second.used; });
+      im.panos.erase(oldest);
+    }
+  }
+  out.ms.decode = MsSince(t0);
+
+  // Lighting: each light frame's model (cached), peaks turned into the nearest frame's frame,
+  // blended by the smoothed weights. The multiscale SGs are blended in their own frames: the
+  // neighbours' rigs differ by a fraction of a degree.
+  t0 = Clock::now();
+  std::vector<std::pair<int, double>> usable;
+  for (const auto& [k, w] : target)
+    if (ok[frame_index_[static_cast<std::size_t>(k)]] || im.lights.count(frame_index_[static_cast<std::size_t>(k)]))
+      usable.emplace_back(k, w);
+  if (usable.empty()) {
+    // Nothing decodable near the car: the nearest frame that has a model, else the first.
+    int best = -1;
+    double best_d = 1e300;
+    for (std::size_t k = 0; k < frame_index_.size(); ++k)
+      if (im.lights.count(frame_index_[k]) || im.panos.count(frame_index_[k])) {
+        const double d = glm::distance(im.positions[k], car_at_rig_height);
+        if (d < best_d) best_d = d, best = static_cast<int>(k);
+      }
+    if (best < 0) throw Error(options_.video, "no frame near the car can be decoded");
+    usable.emplace_back(best, 1.0);
+  }
+  double sum = 0;
+  for (const auto& [k, w] : usable) sum += w;
+  for (auto& [k, w] : usable) w /= sum;
+  const std::map<int, double> weights = im.smoother.Update(usable, dt_s);
+  int ref_k = light_k;
+  if (!weights.count(ref_k))
+    ref_k =
+        std::max_element(weights.begin(), weights.end(), [](auto& a, auto& b) { return a.second < b.second; })->first;
+  const glm::dmat3 ref_from_world = glm::transpose(im.world_from_pano[static_cast<std::size_t>(ref_k)]);
+  std::vector<lighting::SgLighting> turned;
+  turned.reserve(weights.size());
+  std::vector<std::pair<const lighting::SgLighting*, double>> blend;
+  for (const auto& [k, w] : weights) {
+    const int frame = frame_index_[static_cast<std::size_t>(k)];
+    turned.push_back(FrameLighting(frame));
+    const glm::dmat3 ref_from_k = ref_from_world * im.world_from_pano[static_cast<std::size_t>(k)];
+    for (auto& p : turned.back().peaks) p.axis = glm::normalize(ref_from_k * p.axis);
+    out.light_weights[frame] = w;
+  }
+  for (std::size_t i = 0; i < turned.size(); ++i)
+    blend.emplace_back(&turned[i], std::next(weights.begin(), static_cast<std::ptrdiff_t>(i))->second);
+  const lighting::SgLighting light = lighting::SgLighting::Blend(blend);
+  const glm::dmat4 world_from_car = car_->WorldFromCar();
+  const glm::dmat3 car_from_world = glm::transpose(glm::dmat3(world_from_car));
+  im.renderer->SetLighting(light, car_from_world * im.world_from_pano[static_cast<std::size_t>(ref_k)]);
+  out.ms.lighting = MsSince(t0);
+  out.light_frame = frame_index_[static_cast<std::size_t>(light_k)];
+
+  // The viewer: at the view frame's rig centre, looking at the car, turned by the user.
+  t0 = Clock::now();
+  int view_frame = frame_index_[static_cast<std::size_t>(view_k)];
+  if (!ok[view_frame] && im.padded_frame >= 0) {
+    view_frame = im.padded_frame;  // undecodable: keep the last picture and its pose
+    view_k = static_cast<int>(std::find(frame_index_.begin(), frame_index_.end(), view_frame) - frame_index_.begin());
+  }
+  if (!ok[view_frame] && im.padded_frame < 0) {
+    for (const auto& [frame, good] : ok)
+      if (good) view_frame = frame;
+    view_k = static_cast<int>(std::find(frame_index_.begin(), frame_index_.end(), view_frame) - frame_index_.begin());
+  }
+  if (view_k >= static_cast<int>(frame_index_.size())) throw Error(options_.video, "no frame to show can be decoded");
+  out.view_frame = view_frame;
+  const glm::dvec3 eye = im.positions[static_cast<std::size_t>(view_k)];
+  const glm::dvec3 car_centre_world = glm::dvec3(world_from_car * glm::dvec4(im.car_centre, 1));
+  glm::dvec3 d = car_centre_world - eye;
+  if (glm::length(d) < 1e-6) d = car.forward;
+  d = glm::normalize(d);
+  const double pi = sphere::kPi;
+  const double az = std::atan2(d.z, d.x) + view.yaw_deg * pi / 180;  // +z is right of +x seen from above
+  const double el = std::clamp(std::asin(std::clamp(d.y, -1.0, 1.0)) + view.pitch_deg * pi / 180, -1.55, 1.55);
+  const glm::dvec3 look(std::cos(el) * std::cos(az), std::sin(el), std::cos(el) * std::sin(az));
+  const glm::dvec3 eye_car = glm::dvec3(glm::inverse(world_from_car) * glm::dvec4(eye, 1));
+  const glm::dvec3 look_car = car_from_world * look;
+  const double vfov = view.vfov_deg > 0 ? view.vfov_deg : options_.vfov_deg;
+  render::PinholeCamera camera = render::PinholeCamera::LookAt(eye_car, eye_car + look_car, vfov, width, height);
+  last_camera_ = camera;
+  {
+    const glm::dvec3 c = glm::transpose(camera.world_from_camera) * (im.car_centre - camera.position);
+    out.car_in_front = c.z > 1e-3;
+    if (out.car_in_front)
+      out.car_pixel = {0.5 * width + camera.focal_px() * c.x / c.z, 0.5 * height + camera.focal_px() * c.y / c.z};
+  }
+
+  // Background: the view frame's panorama through the camera.
+  if (im.padded_frame != view_frame && im.panos.count(view_frame)) {
+    const cv::Mat lin = Impl::Linear(im.panos[view_frame].rgb8);
+    cv::Mat wrapped;
+    cv::copyMakeBorder(lin, wrapped, 0, 0, 1, 1, cv::BORDER_WRAP);
+    cv::copyMakeBorder(wrapped, im.padded, 1, 1, 0, 0, cv::BORDER_REPLICATE);
+    im.padded_frame = view_frame;
+  }
+  sphere::EquirectImage background(width, height);
+  if (!im.padded.empty()) {
+    const int pw = im.padded.cols - 2, ph = im.padded.rows - 2;
+    const glm::dmat3 pano_from_car =
+        glm::transpose(im.world_from_pano[static_cast<std::size_t>(view_k)]) * glm::dmat3(world_from_car);
+    cv::Mat map_x(height, width, CV_32F), map_y(height, width, CV_32F);
+    cv::parallel_for_(cv::Range(0, height), [&](const cv::Range& rows) {
+      for (int y = rows.start; y < rows.end; ++y)
+        for (int x = 0; x < width; ++x) {
+          const glm::dvec2 px = sphere::EquirectPixel(pano_from_car * camera.Ray(x + 0.5, y + 0.5), pw, ph);
+          map_x.at<float>(y, x) = static_cast<float>(px.x + 0.5);  // +1 border − 0.5 centre
+          map_y.at<float>(y, x) = static_cast<float>(px.y + 0.5);
+        }
+    });
+    cv::Mat bg(height, width, CV_32FC3, background.rgb.data());
+    cv::remap(im.padded, bg, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  }
+  double composite_ms = MsSince(t0);
+
+  if (view.draw_car) {
+    t0 = Clock::now();
+    im.renderer->SetBackgroundImage(background);
+    render::RenderResult r = im.renderer->Render(camera);
+    const double wall = MsSince(t0);
+    out.ms.render = std::max(0.0, wall - r.ms.composite);
+    composite_ms += r.ms.composite;
+    out.image = std::move(r.composite);
+    out.car_pixels = r.counts.car_pixels;
+  } else {
+    out.image = std::move(background);
+  }
+  t0 = Clock::now();
+  if (options_.exposure != 1.0)
+    for (float& v : out.image.rgb) v *= static_cast<float>(options_.exposure);
+  out.ms.composite = composite_ms + MsSince(t0);
+  out.ms.total = MsSince(t_total);
+  return out;
+}
+
+}  // namespace odvr::app

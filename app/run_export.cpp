@@ -1,0 +1,122 @@
+// odvr export: an augmented clip — the car driven along a scripted path through the recorded
+// street, rendered frame by frame and written as a video (OpenCV's FFmpeg writer), atomically.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#include <sstream>
+
+#include "app/augmented_scene.h"
+#include "app/commands.h"
+#include "engine/core/atomic_file.h"
+#include "engine/core/error.h"
+#include "engine/gl/context.h"
+#include "engine/image/image_io.h"
+
+namespace odvr::app {
+namespace {
+
+struct ExportCommand {
+  AugmentedOptions scene;
+  std::string path = "W:3s";
+  std::string out;
+  std::string size = "1280x720";
+  int frames = 0;
+  double fps = 0;
+};
+
+std::pair<int, int> ParseExportSize(const std::string& text) {
+  int a = 0, b = 0;
+  char x = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X') || a < 16 || b < 16 || a > 8192 ||
+      b > 8192 || a % 2 || b % 2)
+    throw UsageError("--size", "expects even WIDTHxHEIGHT between 16x16 and 8192x8192, got '" + text + "'");
+  return {a, b};
+}
+
+int FourccFor(const std::filesystem::path& out) {
+  const std::string ext = out.extension().string();
+  if (ext == ".mp4" || ext == ".mov" || ext == ".m4v") return cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+  if (ext == ".avi" || ext == ".mkv") return cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+  throw UsageError("--out", "'" + out.string() + "': the clip must be .mp4, .mov, .m4v, .avi or .mkv");
+}
+
+int RunExport(ExportCommand& c) {
+  const auto [width, height] = ParseExportSize(c.size);
+  const int fourcc = FourccFor(c.out);
+  // --path is a drive script, or a file holding one.
+  std::string script_text = c.path;
+  if (std::filesystem::is_regular_file(c.path)) {
+    std::ifstream in(c.path);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    script_text = ss.str();
+    script_text.erase(std::remove_if(script_text.begin(), script_text.end(), ::isspace), script_text.end());
+  }
+  const auto script = ParseDriveScript(script_text);
+  if (c.frames < 0) throw UsageError("--frames", "must be non-negative");
+
+  gl::HeadlessContext context;
+  AugmentedScene scene(c.scene);
+  const double fps = c.fps > 0 ? c.fps : (scene.fps() > 0 ? scene.fps() : 25.0);
+  const double dt = 1.0 / fps;
+  const int frames =
+      c.frames > 0 ? c.frames : std::max(1, static_cast<int>(std::ceil(DriveDuration(script) / dt - 1e-9)) + 1);
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  std::vector<std::uint8_t> bgr(static_cast<std::size_t>(width) * height * 3);
+  WriteFileAtomically(c.out, [&](const std::filesystem::path& tmp) {
+    cv::VideoWriter writer(tmp.string(), cv::CAP_FFMPEG, fourcc, fps, cv::Size(width, height));
+    if (!writer.isOpened()) throw Error(c.out, "cannot open a video writer for it (OpenCV's FFmpeg backend)");
+    for (int i = 0; i < frames; ++i) {
+      if (i > 0) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
+      const AugmentedFrame f = scene.Render(width, height, {}, i > 0 ? dt : 0);
+      for (std::size_t p = 0; p < f.image.pixel_count(); ++p)
+        for (int ch = 0; ch < 3; ++ch) {
+          const float v = image::LinearToSrgb(std::clamp(f.image.rgb[3 * p + static_cast<std::size_t>(ch)], 0.f, 1.f));
+          bgr[3 * p + static_cast<std::size_t>(2 - ch)] = static_cast<std::uint8_t>(std::lround(255 * v));
+        }
+      writer.write(cv::Mat(height, width, CV_8UC3, bgr.data()));
+      const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+      const double eta = elapsed / (i + 1) * (frames - i - 1);
+      std::fprintf(stderr, "\rexport: frame %d/%d (view %d)  %.2f s/frame  ETA %.0f s   ", i + 1, frames, f.view_frame,
+                   elapsed / (i + 1), eta);
+    }
+    std::fprintf(stderr, "\n");
+    writer.release();
+    if (!std::filesystem::exists(tmp) || std::filesystem::file_size(tmp) == 0)
+      throw Error(c.out, "the video writer produced nothing");
+  });
+  const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+  std::cout << c.out << ": " << frames << " frames " << width << "x" << height << " at " << fps << " fps in " << elapsed
+            << " s\n";
+  return 0;
+}
+
+}  // namespace
+
+CommandFn AddExport(CLI::App* sub) {
+  auto c = std::make_shared<ExportCommand>();
+  auto& s = c->scene;
+  sub->add_option("--video", s.video, "Equirectangular video or image sequence")->required();
+  sub->add_option("--trajectory", s.trajectory, "Camera poses (trajectory.json)")->required();
+  sub->add_option("--car", s.car, "The car: glTF 2.0 (.glb/.gltf)")->required();
+  sub->add_option("--path", c->path, "The drive: keys and durations, e.g. \"W:2s,A:1s\", or a file holding that")
+      ->capture_default_str();
+  sub->add_option("--car-start", s.car_start_m, "Car's start: arc length along the camera path in metres");
+  sub->add_option("--out", c->out, "The clip (.mp4, .mov, .m4v: MPEG-4 part 2; .avi, .mkv: MJPEG)")->required();
+  sub->add_option("--size", c->size, "WIDTHxHEIGHT (even)")->capture_default_str();
+  sub->add_option("--frames", c->frames, "Frames to write (default: the path's duration)");
+  sub->add_option("--fps", c->fps, "Frame rate (default: the video's)");
+  sub->add_option("--levels", s.lighting_levels, "Car light: HEALPix levels (1..6)")->capture_default_str();
+  sub->add_option("--voxels", s.voxel_resolution, "Visibility grid per side (64, 128, 256)")->capture_default_str();
+  sub->add_option("--fov", s.vfov_deg, "Vertical field of view, degrees")->capture_default_str();
+  return [c] { return RunExport(*c); };
+}
+
+}  // namespace odvr::app

@@ -1,0 +1,137 @@
+// `odvr play` and `odvr export` in augmented mode, run as a user would: headless frames, a real
+// window under Xvfb, an exported clip.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "tests/app/run_odvr.h"
+
+namespace odvr::app {
+namespace {
+
+namespace fs = std::filesystem;
+using odvr::testing::RunOdvr;
+const fs::path kDemo = fs::path(ODVR_SOURCE_DIR) / "media" / "demo";
+const std::string kSmall = " --levels 3 --voxels 64 ";
+
+fs::path TempDir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+TEST(RunPlay, CarWithoutTrajectoryIsAUsageError) {
+  const auto r =
+      RunOdvr("play --headless " + (kDemo / "street.mp4").string() + " --car " + (kDemo / "car.glb").string());
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--trajectory"), std::string::npos) << r.err;
+}
+
+TEST(RunPlayGL, MissingCarModelIsAClearError) {
+  const auto r = RunOdvr("play --headless --size 32x18 --trajectory " + (kDemo / "trajectory_gt.json").string() +
+                         " --car /nonexistent/car.glb");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("/nonexistent/car.glb"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("car model not found"), std::string::npos) << r.err;
+}
+
+// No arguments but --headless: the demo with its car, to PNG frames, saying where.
+TEST(RunPlayGL, HeadlessDemoWithTheCarAndAScriptedDrive) {
+  const fs::path dir = TempDir("odvr_play_headless");
+  const auto r = RunOdvr("play --headless --size 96x54 --drive W:0.2s --out " + dir.string() + kSmall + "--json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["augmented"].get<bool>());
+  const auto& frames = j["frames"];
+  ASSERT_EQ(frames.size(), 6u);  // 0.2 s at 25 fps, and the start
+  for (const auto& f : frames) {
+    EXPECT_TRUE(fs::exists(f["file"].get<std::string>()));
+    EXPECT_GT(f["car_pixels"].get<int>(), 20);
+  }
+  // Accelerating from rest at 3.5 m/s²: 0.07 m after 0.2 s.
+  const double moved = frames.back()["car_world_xz"][0].get<double>() - frames[0]["car_world_xz"][0].get<double>();
+  EXPECT_NEAR(moved, 0.5 * 3.5 * 0.2 * 0.2, 0.01);
+  for (const char* stage : {"decode", "lighting", "render", "composite", "total"})
+    EXPECT_GE(j["median_ms"][stage].get<double>(), 0) << stage;
+  EXPECT_GT(j["median_ms"]["render"].get<double>(), 0);
+
+  const auto plain = RunOdvr("play --headless --size 96x54 --frames 1 --out " + dir.string() + kSmall);
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  EXPECT_NE(plain.out.find("no display: rendered 1 frames to " + dir.string()), std::string::npos) << plain.out;
+  fs::remove_all(dir);
+}
+
+std::string Xvfb(const std::string& args) {
+  return "xvfb-run -a -s \"-screen 0 1280x720x24\" " + std::string(ODVR_BINARY) + " " + args;
+}
+
+int RunShell(const std::string& cmd, std::string* out) {
+  FILE* pipe = ::popen((cmd + " 2>&1").c_str(), "r");
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out->append(buf, n);
+  const int status = ::pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// A real window: it shows what the headless path renders (the car included), and survives being
+// resized to 1×1.
+TEST(RunPlayGL, WindowUnderXvfbShowsTheCar) {
+  if (std::system("command -v xvfb-run >/dev/null 2>&1") != 0) GTEST_SKIP() << "xvfb-run is not installed";
+  const fs::path dir = TempDir("odvr_play_window");
+  const std::string shot = (dir / "window.png").string();
+  std::string log;
+  ASSERT_EQ(RunShell(Xvfb("play --size 480x270 --quit-after 2 --screenshot " + shot + kSmall), &log), 0) << log;
+  const cv::Mat window = cv::imread(shot);
+  ASSERT_FALSE(window.empty()) << log;
+  ASSERT_EQ(window.cols, 480);
+  const auto h = RunOdvr("play --headless --size 480x270 --frames 1 --json --out " + dir.string() + kSmall);
+  ASSERT_EQ(h.exit_code, 0) << h.err;
+  const auto j = nlohmann::json::parse(h.out);
+  const cv::Mat headless = cv::imread(j["frames"][0]["file"].get<std::string>());
+  const double px = j["frames"][0]["car_pixel"][0], py = j["frames"][0]["car_pixel"][1];
+  // The car stands still, so both show the same picture; the overlay covers the top ~100 rows.
+  const cv::Rect around(static_cast<int>(px) - 30, static_cast<int>(py) - 10, 60, 30);
+  ASSERT_TRUE((around & cv::Rect(0, 100, 480, 170)) == around);
+  const double diff = cv::norm(window(around), headless(around), cv::NORM_L1) / (around.area() * 3.0);
+  EXPECT_LT(diff, 3.0) << "mean 8-bit difference around the car";
+  // And the car is there: its pixels differ from the bare panorama's.
+  EXPECT_GT(j["frames"][0]["car_pixels"].get<int>(), 1000);
+
+  log.clear();
+  EXPECT_EQ(RunShell(Xvfb("play --size 64x36 --quit-after 2 --resize 1x1 --drive W:1s" + kSmall), &log), 0) << log;
+  fs::remove_all(dir);
+}
+
+TEST(RunPlayGL, ExportWritesAClipAtomically) {
+  const fs::path dir = TempDir("odvr_export");
+  const fs::path out = dir / "clip.mp4";
+  const auto r = RunOdvr("export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
+                         (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
+                         " --path W:0.2s --size 96x54 --out " + out.string() + " --levels 3 --voxels 64");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("ETA"), std::string::npos) << r.err;
+  cv::VideoCapture clip(out.string());
+  ASSERT_TRUE(clip.isOpened());
+  int frames = 0;
+  cv::Mat f;
+  while (clip.read(f)) {
+    EXPECT_EQ(f.cols, 96);
+    EXPECT_EQ(f.rows, 54);
+    ++frames;
+  }
+  EXPECT_EQ(frames, 6);
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 1) << "a temporary was left beside the clip";
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace odvr::app
