@@ -27,6 +27,7 @@ CommandFn AddReconstruct(CLI::App* sub);
 CommandFn AddBench(CLI::App* sub);
 CommandFn AddExport(CLI::App* sub);
 CommandFn AddBenchLight(CLI::App* sub);
+CommandFn AddBenchRender(CLI::App* sub);
 CommandFn AddBenchStitch(CLI::App* sub);
 CommandFn AddBenchPlayer(CLI::App* sub);
 

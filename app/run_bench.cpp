@@ -15,6 +15,7 @@ CommandFn AddBench(CLI::App* sub) {
       {"stitch", "Stitching: time and PSNR against the street ground truth, beside OpenCV's pipeline", AddBenchStitch},
       {"player", "Player: the augmented frame budget (decode, lighting, render, composite) on the demo",
        AddBenchPlayer},
+      {"render", "Renderer: error and SSIM against Cycles and time, beside a Monte-Carlo shader", AddBenchRender},
   };
   auto runners = std::make_shared<std::vector<std::pair<CLI::App*, CommandFn>>>();
   for (const auto& k : kinds) {

@@ -1,7 +1,8 @@
-// The SG lobes of the BRDFs, a port of engine/material/brdf.cpp (isotropic warp, eq. 4.10;
-// the cosine folded into the weight at the lobe axis; the Lambertian lobe is the clamped-cosine
-// SG). brdf.h derives every formula; this file only mirrors it, in float. Lobe amplitudes μ are
-// folded into the weights, so every lobe SG has unit amplitude.
+// The SG lobes of the BRDFs, a port of engine/material/brdf.cpp (eq. 4.10's isotropic warp or
+// the anisotropic split; the cosine at the lobe axis or as the clamped-cosine SG; the Lambertian
+// lobe is the clamped-cosine SG). Needs sg_integral.glsl. brdf.h derives every formula; this file
+// only mirrors it, in float. Lobe amplitudes μ are folded into the weights, so every lobe SG has
+// unit amplitude.
 const float kMinCosView = 1e-3;
 const float kMinAlpha = 0.01;
 const float kCosineSgLambda = 2.133;
@@ -18,14 +19,6 @@ const int kBrdfWard = 5;
 const int kBrdfCookTorrance = 6;
 const int kBrdfMetallicRoughness = 7;
 
-const int kMaxLobes = 4;
-
-struct Lobe {
-  vec3 axis;
-  float lambda;
-  vec3 weight;
-  bool cosine;  // the clamped-cosine lobe (Lambertian): peaks use the exact cosine
-};
 
 // λ·α² of the SG fit of a GGX/Beckmann NDF (material::NdfSgLambda), tabulated on α ∈ [kMinAlpha, 1]
 // by the renderer: smooth (→ 2 − α² as α → 0), so linear interpolation is ample.
@@ -77,22 +70,11 @@ float smithLambda(bool ggx, float alpha, float cos_theta) {
   return (1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a);
 }
 
-struct LobeList {
-  Lobe lobes[kMaxLobes];
-  int count;
-};
-
-void pushLobe(inout LobeList list, vec3 axis, float lambda, vec3 m_at_axis, vec3 n) {
-  float cos_axis = dot(n, axis);
-  if (cos_axis <= 0.0 || (m_at_axis.x <= 0.0 && m_at_axis.y <= 0.0 && m_at_axis.z <= 0.0)) return;
-  if (list.count >= kMaxLobes) return;
-  list.lobes[list.count++] = Lobe(axis, lambda, m_at_axis * cos_axis, false);
-}
-
-void pushCosineLobe(inout LobeList list, vec3 n, vec3 weight) {
-  if ((weight.x <= 0.0 && weight.y <= 0.0 && weight.z <= 0.0) || list.count >= kMaxLobes) return;
-  list.lobes[list.count++] = Lobe(n, kCosineSgLambda, weight * kCosineSgAmplitude, true);
-}
+// RenderOptions::lobes (material::LobeOptions): 1 = WarpMode::kAnisotropicSplit,
+// 1 = CosineTerm::kAsSg.
+uniform int uWarpSplit;
+uniform int uCosineAsSg;
+const int kMaxSplitLobes = 15;  // material::kMaxAnisotropicLobes
 
 // Eq. 4.10: a half-vector SG around n (λ_h) to incident space for the view wo.
 void warpToIncident(vec3 n, float lambda_h, vec3 wo, out vec3 axis, out float lambda) {
@@ -101,55 +83,170 @@ void warpToIncident(vec3 n, float lambda_h, vec3 wo, out vec3 axis, out float la
   lambda = lambda_h / (4.0 * max(abs(d), kMinCosView));
 }
 
-void pushCookTorrance(inout LobeList list, vec3 f0, float alpha, bool ggx, vec3 n, vec3 wo) {
-  alpha = clamp(alpha, kMinAlpha, 1.0);
-  float cos_o = dot(n, wo);
-  vec3 axis;
-  float lambda;
-  warpToIncident(n, ndfSgLambda(alpha), wo, axis, lambda);
-  float cos_i = max(dot(n, axis), kMinCosView);
-  vec3 h = normalize(axis + wo);
+// M of a warped lobe at incident direction wi (material::PushWarped's m_of): kind 0 a constant
+// (Blinn-Phong), 1 Cook-Torrance (f0 = color, α, GGX or Beckmann), 2 isotropic Ward (ρs = color, α).
+const int kMConstant = 0;
+const int kMCookTorrance = 1;
+const int kMWard = 2;
+
+vec3 mAt(int kind, vec3 color, float alpha, bool ggx, vec3 n, vec3 wo, vec3 wi) {
+  if (kind == kMConstant) return color;
+  float cos_i = max(dot(n, wi), kMinCosView), cos_o = dot(n, wo);
+  if (kind == kMWard) return color / (4.0 * kLobePi * alpha * alpha * sqrt(cos_i * cos_o));
+  vec3 h = normalize(wi + wo);
   float g = 1.0 / (1.0 + smithLambda(ggx, alpha, cos_i) + smithLambda(ggx, alpha, cos_o));
-  vec3 m = schlick(f0, dot(axis, h)) * (g / (4.0 * cos_i * cos_o)) / (kLobePi * alpha * alpha);
-  pushLobe(list, axis, lambda, m, n);
+  return schlick(color, dot(wi, h)) * (g / (4.0 * cos_i * cos_o));
 }
 
-void metallicRoughnessLobes(inout LobeList list, vec3 base, float metallic, float roughness, vec3 n, vec3 wo) {
-  metallic = clamp(metallic, 0.0, 1.0);
-  base = clamp(base, 0.0, 1.0);
-  float r = clamp(roughness, 0.0, 1.0);
-  vec3 f0 = mix(vec3(0.04), base, metallic);
-  vec3 c_diff = base * (1.0 - metallic);
-  pushCosineLobe(list, n, (vec3(1.0) - schlick(f0, dot(n, wo))) * c_diff / kLobePi);
-  pushCookTorrance(list, f0, r * r, true, n, wo);
+// material::PushWarped: the half-vector SG (n, λ_h, amplitude) warped by eq. 4.10, or split into
+// a row of isotropic SGs along the plane of incidence (material::SplitRow; brdf.h says why).
+// One material term's lobes, described so that lobe i can be computed on its own (termLobe):
+// the shader then has a single call site for the shading of a lobe. Inlined at every call site
+// of a streaming push, the cone tracing made llvmpipe's compile take minutes.
+struct TermLobes {
+  int count;            // lobes, the dropped ones included
+  bool has_cosine;      // lobe 0 is the clamped-cosine lobe
+  vec3 cosine_weight;
+  int kind;             // -1: none; kMConstant, kMCookTorrance, kMWard: a warped lobe; 3: Phong
+  vec3 color;           // M's colour parameter (Phong: its weight)
+  float alpha, amplitude;
+  bool ggx;
+  vec3 axis;            // warped (or Phong) axis
+  float lambda;         // its λ (Phong's exponent; eq. 4.10's warp)
+  float lambda_h;       // the half-vector λ
+  bool split;
+  vec3 across;
+  float split_lambda, s_conv, delta, scale;
+  int half_count;
+};
+const int kMPhong = 3;
+
+void describeWarped(inout TermLobes t, float lambda_h, float amplitude, int kind, vec3 color, float alpha, bool ggx,
+                    vec3 n, vec3 wo) {
+  t.kind = kind;
+  t.color = color;
+  t.alpha = alpha;
+  t.ggx = ggx;
+  t.amplitude = amplitude;
+  t.lambda_h = lambda_h;
+  warpToIncident(n, lambda_h, wo, t.axis, t.lambda);
+  vec3 across = n - dot(n, t.axis) * t.axis;
+  t.split = false;
+  t.half_count = 0;
+  if (uWarpSplit != 0 && length(across) >= 1e-5 && lambda_h > 0.0) {
+    t.across = normalize(across);
+    float cos_d = max(abs(dot(wo, n)), kMinCosView);
+    float s_h = inversesqrt(lambda_h);
+    float s_short = 2.0 * cos_d * s_h, s_long = 2.0 * s_h;
+    t.split_lambda = 1.0 / (s_short * s_short);
+    t.s_conv = sqrt(max(0.0, s_long * s_long - s_short * s_short));
+    t.split = true;
+    if (t.s_conv >= 1e-3 * s_short) {
+      float s_eff = s_short * t.s_conv / s_long;
+      t.half_count = clamp(int(floor(3.0 * t.s_conv / (1.8 * s_eff))), 1, (kMaxSplitLobes - 1) / 2);
+      t.delta = 3.0 * t.s_conv / float(t.half_count);
+      float sum = 0.0;
+      for (int k = -t.half_count; k <= t.half_count; ++k) {
+        float tau = float(k) * t.delta;
+        sum += exp(-tau * tau / (2.0 * t.s_conv * t.s_conv));
+      }
+      t.scale = (s_long / s_short) / sum;
+    }
+  }
+  t.count += 2 * t.half_count + 1;
 }
 
-// Appends the lobes of one material term. `wo` must already be bent (bendView).
-void appendLobes(inout LobeList list, int type, vec4 color, vec4 params, vec3 base, float metallic, float roughness,
-                 vec3 n, vec3 wo) {
-  if (type == kBrdfGltf) {
-    metallicRoughnessLobes(list, base, metallic, roughness, n, wo);
-  } else if (type == kBrdfMetallicRoughness) {
-    metallicRoughnessLobes(list, color.rgb, params.x, params.y, n, wo);
+TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metallic, float roughness, vec3 n, vec3 wo) {
+  TermLobes t;
+  t.count = 0;
+  t.has_cosine = false;
+  t.kind = -1;
+  if (type == kBrdfGltf || type == kBrdfMetallicRoughness) {
+    if (type == kBrdfMetallicRoughness) {
+      base = color.rgb;
+      metallic = params.x;
+      roughness = params.y;
+    }
+    metallic = clamp(metallic, 0.0, 1.0);
+    base = clamp(base, 0.0, 1.0);
+    float r = clamp(roughness, 0.0, 1.0);
+    vec3 f0 = mix(vec3(0.04), base, metallic);
+    t.has_cosine = true;
+    t.cosine_weight = (vec3(1.0) - schlick(f0, dot(n, wo))) * base * (1.0 - metallic) / kLobePi;
+    t.count = 1;
+    float alpha = clamp(r * r, kMinAlpha, 1.0);
+    describeWarped(t, ndfSgLambda(alpha), 1.0 / (kLobePi * alpha * alpha), kMCookTorrance, f0, alpha, true, n, wo);
   } else if (type == kBrdfLambertian) {
-    pushCosineLobe(list, n, color.rgb / kLobePi);
+    t.has_cosine = true;
+    t.cosine_weight = color.rgb / kLobePi;
+    t.count = 1;
   } else if (type == kBrdfPhong) {
     float e = params.x;
-    pushLobe(list, reflectAbout(wo, n), max(0.0, e), color.rgb * ((e + 2.0) / (2.0 * kLobePi)), n);
+    t.kind = kMPhong;
+    t.axis = reflectAbout(wo, n);
+    t.lambda = max(0.0, e);
+    t.color = color.rgb * ((e + 2.0) / (2.0 * kLobePi));
+    t.amplitude = 1.0;
+    t.count = 1;
   } else if (type == kBrdfBlinnPhong) {
     float s = params.x;
-    vec3 axis;
-    float lambda;
-    warpToIncident(n, max(0.0, s), wo, axis, lambda);
-    pushLobe(list, axis, lambda, color.rgb * ((s + 8.0) / (8.0 * kLobePi)), n);
+    describeWarped(t, max(0.0, s), 1.0, kMConstant, color.rgb * ((s + 8.0) / (8.0 * kLobePi)), 0.0, true, n, wo);
   } else if (type == kBrdfWard) {
     float a = max(params.x, 1e-3);
-    vec3 axis;
-    float lambda;
-    warpToIncident(n, 2.0 / (a * a), wo, axis, lambda);
-    float cos_i = max(dot(n, axis), kMinCosView);
-    pushLobe(list, axis, lambda, color.rgb / (4.0 * kLobePi * a * a * sqrt(cos_i * dot(n, wo))), n);
+    describeWarped(t, 2.0 / (a * a), 1.0, kMWard, color.rgb, a, true, n, wo);
   } else if (type == kBrdfCookTorrance) {
-    pushCookTorrance(list, color.rgb, params.x, params.y < 0.5, n, wo);
+    float alpha = clamp(params.x, kMinAlpha, 1.0);
+    describeWarped(t, ndfSgLambda(alpha), 1.0 / (kLobePi * alpha * alpha), kMCookTorrance, color.rgb, alpha,
+                   params.y < 0.5, n, wo);
   }
+  return t;
+}
+
+// Lobe i of the term (material::Push): false when it is dropped (its axis below the horizon or
+// no weight), as material::AppendLobes leaves it out.
+bool termLobe(in TermLobes t, int i, vec3 n, vec3 wo, out vec3 axis, out float lambda, out vec3 weight,
+              out bool cosine) {
+  cosine = false;
+  if (t.has_cosine) {
+    if (i == 0) {
+      axis = n;
+      lambda = kCosineSgLambda;
+      weight = t.cosine_weight * kCosineSgAmplitude;
+      cosine = true;
+      return t.cosine_weight.x > 0.0 || t.cosine_weight.y > 0.0 || t.cosine_weight.z > 0.0;
+    }
+    --i;
+  }
+  float amplitude = t.amplitude;
+  vec3 m;
+  if (t.kind == kMPhong) {
+    axis = t.axis;
+    lambda = t.lambda;
+    m = t.color;
+  } else if (!t.split) {
+    axis = t.axis;
+    lambda = t.lambda;
+    m = mAt(t.kind, t.color, t.alpha, t.ggx, n, wo, axis);
+  } else if (t.half_count == 0) {
+    axis = t.axis;
+    lambda = t.split_lambda;
+    m = mAt(t.kind, t.color, t.alpha, t.ggx, n, wo, axis);
+  } else {
+    float tau = float(i - t.half_count) * t.delta;
+    axis = normalize(t.axis + tau * t.across);
+    lambda = t.split_lambda;
+    amplitude *= t.scale * exp(-tau * tau / (2.0 * t.s_conv * t.s_conv));
+    m = mAt(t.kind, t.color, t.alpha, t.ggx, n, wo, axis);
+  }
+  float cos_axis = dot(n, axis);
+  if (cos_axis <= 0.0 || (m.x <= 0.0 && m.y <= 0.0 && m.z <= 0.0)) return false;
+  if (uCosineAsSg == 0) {
+    weight = m * (amplitude * cos_axis);
+  } else {
+    SgProduct q = sgProduct(axis, lambda, n, kCosineSgLambda);
+    axis = q.axis;
+    lambda = q.lambda;
+    weight = m * (amplitude * kCosineSgAmplitude * exp(q.log_amplitude));
+  }
+  return true;
 }

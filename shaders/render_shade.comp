@@ -228,42 +228,51 @@ void tracePeakCones(vec3 p, out float peak_visibility[kMaxPeaks], inout uvec4 co
   }
 }
 
+// The pixel being shaded, for emitLobe.
+vec3 gOrigin;
+vec3 gRadiance;
+uvec4 gCount;
+float gPeakVisibility[kMaxPeaks];
+ConeSet gSet;
+
+void emitLobe(vec3 axis, float lambda, vec3 weight, bool cosine) {
+  traceLobeCones(axis, lambda, gOrigin, gSet);
+  vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
+  shadeLobe(axis, lambda, gSet, shaded, unshadowed, gCount);
+  shadePeaks(axis, lambda, cosine, gPeakVisibility, shaded, unshadowed);
+  gRadiance += weight * shaded;
+  gCount.x += 1u;
+  gCount.y += uint(gSet.count);
+}
+
 void main() {
   ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
   if (pixel.x >= uSize.x || pixel.y >= uSize.y) return;
   uint index = uint(pixel.y * uSize.x + pixel.x);
-  uvec4 count = uvec4(0);
+  gCount = uvec4(0);
   vec4 gp = imageLoad(uGPosition, pixel);
   vec4 car = vec4(0.0);
   vec4 shadow = vec4(1.0, 1.0, 1.0, 0.0);
-  ConeSet set;
-  float peak_visibility[kMaxPeaks];
   int material = int(gp.w + 0.5) - 1;
   if (material >= 0 && material < uMaterialCount) {
     vec4 gn = imageLoad(uGNormal, pixel);
     vec4 gb = imageLoad(uGBase, pixel);
     vec3 p = gp.xyz, n = normalize(gn.xyz);
     vec3 wo = bendView(n, normalize(uCameraPosition - p));
-    LobeList list;
-    list.count = 0;
+    gOrigin = p + uSurfaceOffset * n;
+    gRadiance = vec3(0.0);
+    tracePeakCones(gOrigin, gPeakVisibility, gCount);
     for (int k = 0; k < uTermsPerMaterial; ++k) {
       MaterialTerm term = terms[material * uTermsPerMaterial + k];
-      appendLobes(list, term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wo);
+      TermLobes t = describeTerm(term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wo);
+      for (int i = 0; i < t.count; ++i) {
+        vec3 axis, weight;
+        float lambda;
+        bool cosine;
+        if (termLobe(t, i, n, wo, axis, lambda, weight, cosine)) emitLobe(axis, lambda, weight, cosine);
+      }
     }
-    vec3 origin = p + uSurfaceOffset * n;
-    tracePeakCones(origin, peak_visibility, count);
-    vec3 radiance = vec3(0.0);
-    for (int l = 0; l < list.count; ++l) {
-      Lobe lobe = list.lobes[l];
-      traceLobeCones(lobe.axis, lobe.lambda, origin, set);
-      vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
-      shadeLobe(lobe.axis, lobe.lambda, set, shaded, unshadowed, count);
-      shadePeaks(lobe.axis, lobe.lambda, lobe.cosine, peak_visibility, shaded, unshadowed);
-      radiance += lobe.weight * shaded;
-      count.x += 1u;
-      count.y += uint(set.count);
-    }
-    car = vec4(radiance, 1.0);
+    car = vec4(gRadiance, 1.0);
   } else if (uGround != 0) {
     vec3 dir = normalize(uWorldFromCamera * vec3((vec2(pixel) + 0.5 - 0.5 * vec2(uSize)) / uFocal, 1.0));
     float t = dir.y < 0.0 ? -uCameraPosition.y / dir.y : -1.0;
@@ -271,22 +280,22 @@ void main() {
     if (t > 0.0 && abs(p.x - uGroundCenter.x) <= uGroundHalfSize && abs(p.z - uGroundCenter.y) <= uGroundHalfSize) {
       p.y = 0.0;
       const vec3 up = vec3(0, 1, 0);
-      traceLobeCones(up, kCosineSgLambda, p, set);
-      tracePeakCones(p, peak_visibility, count);
-      count.y += uint(set.count);
-      bool lit = set.all_visible;
-      for (int k = 0; k < kMaxPeaks; ++k) lit = lit && peak_visibility[k] >= 1.0;
+      traceLobeCones(up, kCosineSgLambda, p, gSet);
+      tracePeakCones(p, gPeakVisibility, gCount);
+      gCount.y += uint(gSet.count);
+      bool lit = gSet.all_visible;
+      for (int k = 0; k < kMaxPeaks; ++k) lit = lit && gPeakVisibility[k] >= 1.0;
       shadow.a = 1.0;
       if (!lit) {
         vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
-        shadeLobe(up, kCosineSgLambda, set, shaded, unshadowed, count);
-        shadePeaks(up, kCosineSgLambda, true, peak_visibility, shaded, unshadowed);
-        count.x += 1u;
+        shadeLobe(up, kCosineSgLambda, gSet, shaded, unshadowed, gCount);
+        shadePeaks(up, kCosineSgLambda, true, gPeakVisibility, shaded, unshadowed);
+        gCount.x += 1u;
         for (int c = 0; c < 3; ++c) shadow[c] = unshadowed[c] > 0.0 ? clamp(shaded[c] / unshadowed[c], 0.0, 1.0) : 1.0;
       }
     }
   }
   imageStore(uCarLayer, pixel, car);
   imageStore(uShadowLayer, pixel, shadow);
-  counts[index] = count;
+  counts[index] = gCount;
 }

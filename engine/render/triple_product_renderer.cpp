@@ -297,6 +297,8 @@ void RenderOptions::Check() const {
   for (const auto& m : materials)
     if (m.brdfs.empty() || m.brdfs.size() > static_cast<std::size_t>(TripleProductRenderer::kTermsPerMaterial))
       throw Error("render material override", "needs one or two BRDF terms");
+  if (monte_carlo_samples < 0 || monte_carlo_samples > 1 << 20)
+    throw Error("render monte_carlo_samples", "must be in 0..2^20");
   visibility::ConeSubsampleOptions c = cones;
   c.rings = cone_rings;
   c.Check();
@@ -335,6 +337,10 @@ struct TripleProductRenderer::Impl {
   sphere::EquirectImage environment, background_image;
   gl::Texture environment_texture{gl::NoCreate};
   bool background_is_image = false;
+  // The Monte-Carlo baseline's sampling tables of `environment` (render_mc.comp).
+  gl::Buffer env_row_cdf{gl::NoCreate}, env_col_cdf{gl::NoCreate}, env_texel_prob{gl::NoCreate};
+  gl::Texture mc_environment{gl::NoCreate};
+  gl::Program mc_program{gl::NoCreate};
 
   gl::Program gbuffer_program{gl::NoCreate}, shade_program{gl::NoCreate}, composite_program{gl::NoCreate};
   int fb_width = 0, fb_height = 0;
@@ -398,6 +404,7 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   im.shade_program = gl::ShaderLibrary::Compute("render_shade.comp",
                                                 "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n");
   im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
+  if (options_.monte_carlo_samples > 0) im.mc_program = gl::ShaderLibrary::Compute("render_mc.comp");
   im.white = gl::Texture::Create2D(GL_RGBA8, 1, 1);
   const std::uint8_t white[4] = {255, 255, 255, 255};
   im.white.Upload2D(GL_RGBA, GL_UNSIGNED_BYTE, white);
@@ -540,6 +547,53 @@ void TripleProductRenderer::SetEnvironment(const sphere::EquirectImage& equirect
   im.environment_texture = gl::Texture::Create2D(GL_RGB32F, equirect.width, equirect.height);
   im.environment_texture.Upload2D(GL_RGB, GL_FLOAT, equirect.rgb.data());
   im.environment_texture.SetWrap(GL_REPEAT, GL_CLAMP_TO_EDGE).SetFilter(GL_LINEAR, GL_LINEAR);
+  if (options_.monte_carlo_samples > 0) {
+    // Texel probabilities ∝ (luminance + a floor) × solid angle; the floor (1e-3 of the mean)
+    // keeps every direction reachable by this strategy alone.
+    const int w = equirect.width, h = equirect.height;
+    std::vector<double> lum(static_cast<std::size_t>(w) * h);
+    double mean = 0;
+    for (std::size_t i = 0; i < lum.size(); ++i) {
+      const float* c = &equirect.rgb[3 * i];
+      lum[i] = std::max(0.0, 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
+      mean += lum[i] / static_cast<double>(lum.size());
+    }
+    const double floor_value = std::max(1e-3 * mean, 1e-12);
+    std::vector<double> weight(lum.size());
+    double total = 0;
+    for (int y = 0; y < h; ++y) {
+      const double sin_theta = std::sin(3.14159265358979323846 * (y + 0.5) / h);
+      for (int x = 0; x < w; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * w + x;
+        weight[i] = (lum[i] + floor_value) * sin_theta;
+        total += weight[i];
+      }
+    }
+    std::vector<float> prob(lum.size()), rows(static_cast<std::size_t>(h) + 1, 0.f),
+        cols(static_cast<std::size_t>(h) * (w + 1), 0.f);
+    double row_acc = 0;
+    for (int y = 0; y < h; ++y) {
+      double row_sum = 0;
+      for (int x = 0; x < w; ++x) row_sum += weight[static_cast<std::size_t>(y) * w + x];
+      double acc = 0;
+      for (int x = 0; x < w; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * w + x;
+        prob[i] = static_cast<float>(weight[i] / total);
+        acc += weight[i];
+        cols[static_cast<std::size_t>(y) * (w + 1) + x + 1] = static_cast<float>(acc / row_sum);
+      }
+      cols[static_cast<std::size_t>(y) * (w + 1) + w] = 1.f;
+      row_acc += row_sum;
+      rows[static_cast<std::size_t>(y) + 1] = static_cast<float>(row_acc / total);
+    }
+    rows[static_cast<std::size_t>(h)] = 1.f;
+    im.env_row_cdf = MakeBuffer(rows);
+    im.env_col_cdf = MakeBuffer(cols);
+    im.env_texel_prob = MakeBuffer(prob);
+    im.mc_environment = gl::Texture::Create2D(GL_RGB32F, w, h);
+    im.mc_environment.Upload2D(GL_RGB, GL_FLOAT, equirect.rgb.data());
+    im.mc_environment.SetFilter(GL_NEAREST, GL_NEAREST);
+  }
 }
 
 void TripleProductRenderer::SetBackgroundImage(const sphere::EquirectImage& image) {
@@ -560,9 +614,10 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     throw Error("background", "image is " + std::to_string(im.background_image.width) + "x" +
                                   std::to_string(im.background_image.height) + ", the output " + std::to_string(w) +
                                   "x" + std::to_string(h));
-  if (device == ShadeDevice::kGpu && (options_.lobes.warp != material::WarpMode::kIsotropic ||
-                                      options_.lobes.cosine != material::CosineTerm::kAtLobeAxis))
-    throw Error("render lobes", "the GPU pass shades the isotropic warp with the cosine at the lobe axis only");
+  const bool monte_carlo = options_.monte_carlo_samples > 0;
+  if (monte_carlo && device != ShadeDevice::kGpu)
+    throw Error("render", "the Monte-Carlo baseline runs on the GPU only");
+  if (monte_carlo && !im.mc_environment) throw Error("render", "the Monte-Carlo baseline needs SetEnvironment");
   RenderResult out;
   const auto t_total = Clock::now();
   gl::Finish();
@@ -687,6 +742,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uMaterialCount", static_cast<int>(im.materials.size()))
         .Set("uSurfaceOffset", static_cast<float>(options_.surface_offset_voxels * im.spec.voxel_size))
         .Set("uGround", options_.ground ? 1 : 0)
+        .Set("uWarpSplit", options_.lobes.warp == material::WarpMode::kAnisotropicSplit ? 1 : 0)
+        .Set("uCosineAsSg", options_.lobes.cosine == material::CosineTerm::kAsSg ? 1 : 0)
         .Set("uGroundCenter", static_cast<float>(ground_centre.x), static_cast<float>(ground_centre.y))
         .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
         .Set("uVoxelOrigin", static_cast<float>(im.spec.origin.x), static_cast<float>(im.spec.origin.y),
@@ -714,7 +771,42 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     im.counts.BindBase(GL_SHADER_STORAGE_BUFFER, 6);
     im.ndf_table.BindBase(GL_SHADER_STORAGE_BUFFER, 7);
     glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
-    sp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+    if (monte_carlo) {
+      gl::Program& mp = im.mc_program;
+      glProgramUniform2i(mp.id(), mp.Uniform("uSize"), w, h);
+      glProgramUniform1ui(mp.id(), mp.Uniform("uSeed"), options_.monte_carlo_seed);
+      mp.Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
+             static_cast<float>(camera.position.z))
+          .SetMat3("uWorldFromCamera", glm::value_ptr(wfc))
+          .Set("uFocal", static_cast<float>(f))
+          .SetMat3("uEnvFromWorld", glm::value_ptr(efw))
+          .Set("uTermsPerMaterial", kTermsPerMaterial)
+          .Set("uMaterialCount", static_cast<int>(im.materials.size()))
+          .Set("uSurfaceOffset", static_cast<float>(options_.surface_offset_voxels * im.spec.voxel_size))
+          .Set("uGround", options_.ground ? 1 : 0)
+          .Set("uGroundCenter", static_cast<float>(ground_centre.x), static_cast<float>(ground_centre.y))
+          .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
+          .Set("uSamples", options_.monte_carlo_samples)
+          // A ray of a voxel's width: level 0 all along (cone_trace.glsl clamps the diameter).
+          .Set("uShadowRayHalfAngle", 1e-4f)
+          .Set("uVoxelOrigin", static_cast<float>(im.spec.origin.x), static_cast<float>(im.spec.origin.y),
+               static_cast<float>(im.spec.origin.z))
+          .Set("uVoxelSize", static_cast<float>(im.spec.voxel_size))
+          .Set("uVoxelSide", static_cast<float>(im.spec.side()))
+          .Set("uVoxelTopLevel", im.has_geometry ? im.spec.levels() - 1 : -1)
+          .Set("uConeStartOffset", static_cast<float>(options_.trace.start_offset_voxels))
+          .Set("uConeStepScale", static_cast<float>(options_.trace.step_scale))
+          .Set("uConeMaxDistance", static_cast<float>(options_.trace.max_distance))
+          .Set("uConeOpaque", static_cast<float>(options_.trace.opaque_threshold))
+          .Set("uConePartialExponent", static_cast<float>(options_.trace.partial_opacity_exponent));
+      im.mc_environment.BindUnit(1);
+      im.env_row_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
+      im.env_col_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
+      im.env_texel_prob.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
+      mp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+    } else {
+      sp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+    }
     glMemoryBarrier(GL_ALL_BARRIER_BITS);
     gl::Finish();
     out.ms.shade = MsSince(t0);

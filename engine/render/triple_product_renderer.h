@@ -98,9 +98,18 @@ struct RenderOptions {
   // (a Lambertian sphere under a constant sky keeps 77 % of its light at 0 voxels, 97.5 % at 1,
   // 99.5 % at 2, at 64³).
   double surface_offset_voxels = 2.0;
-  // How BRDFs become lobes. The GPU pass implements the defaults only (isotropic warp, cosine at
-  // the lobe axis; Render throws otherwise); the CPU reference takes any, to measure the others.
-  material::LobeOptions lobes;
+  // How BRDFs become lobes; the GPU pass and the CPU reference implement every mode. The default,
+  // chosen by `odvr bench render` (docs/benchmarks/render.md): the anisotropic split with the
+  // cosine at each lobe's axis — against Cycles it cuts the glossy paints' relative L1 (studio
+  // 0.73 → 0.41) for ~30 % more shade time; the cosine as an SG is worse (M at a broad lobe's
+  // axis carries 1/cos θ_i uncancelled: rough paints come out 1.5–1.9× too bright).
+  material::LobeOptions lobes{material::CosineTerm::kAtLobeAxis, material::WarpMode::kAnisotropicSplit};
+  // > 0: the shading stage is instead the brute-force Monte-Carlo baseline (render_mc.comp, GPU
+  // only, needs SetEnvironment): this many samples per pixel of the environment map itself,
+  // importance-sampled by its luminance, the cosine and the GGX NDF (one-sample MIS), each with a
+  // shadow ray marched through the same voxel volume. The lighting model is then unused.
+  int monte_carlo_samples = 0;
+  unsigned monte_carlo_seed = 1;
   void Check() const;  // throws odvr::Error naming the field
 };
 

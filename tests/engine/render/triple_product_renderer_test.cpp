@@ -169,8 +169,38 @@ TEST_F(TripleProductRendererGL, GpuMatchesCpuReference) {
   EXPECT_LT(shadow_diff, 0.01);
   // Both paths count the same work.
   EXPECT_NEAR(gpu.counts.lobes_per_car_pixel, cpu.counts.lobes_per_car_pixel, 0.01);
-  EXPECT_NEAR(gpu.counts.cones_per_car_pixel, cpu.counts.cones_per_car_pixel, 0.01);
+  // The split's lobes put a few right at the one-cone threshold, where float and double pick
+  // different cone counts (measured 0.15 %).
+  EXPECT_NEAR(gpu.counts.cones_per_car_pixel, cpu.counts.cones_per_car_pixel, 0.005 * cpu.counts.cones_per_car_pixel);
   EXPECT_NEAR(gpu.counts.sgs_per_car_pixel, cpu.counts.sgs_per_car_pixel, 0.02 * cpu.counts.sgs_per_car_pixel);
+}
+
+// The anisotropic split and the cosine as an SG (material::LobeOptions) in render_shade.comp
+// against the CPU reference, which builds its lobes with material::AppendLobes itself.
+TEST_F(TripleProductRendererGL, GpuMatchesCpuReferenceForEveryLobeMode) {
+  for (const auto warp : {material::WarpMode::kIsotropic, material::WarpMode::kAnisotropicSplit})
+    for (const auto cosine : {material::CosineTerm::kAtLobeAxis, material::CosineTerm::kAsSg}) {
+      if (warp == RenderOptions{}.lobes.warp && cosine == RenderOptions{}.lobes.cosine) continue;  // GpuMatchesCpu…
+      RenderOptions o;
+      o.voxel_resolution = 64;
+      o.lobes = {cosine, warp};
+      TripleProductRenderer r(SphereAndBox(), glm::dmat4(1.0), o);
+      r.SetLighting(SunnySky());
+      const RenderResult gpu = r.Render(View(48, 32), ShadeDevice::kGpu);
+      const RenderResult cpu = r.Render(View(48, 32), ShadeDevice::kCpu);
+      ASSERT_TRUE(AllFinite(gpu.car));
+      const Diff car = Compare(gpu.car, cpu.car, gpu.car_alpha);
+      std::printf("warp %d cosine %d: GPU vs CPU mean %.4f p99 %.4f rel; lobes per car pixel %.2f (CPU %.2f)\n",
+                  static_cast<int>(warp), static_cast<int>(cosine), car.mean_rel, car.p99_rel,
+                  gpu.counts.lobes_per_car_pixel, cpu.counts.lobes_per_car_pixel);
+      EXPECT_LT(car.mean_rel, 0.01);
+      EXPECT_LT(car.p99_rel, 0.05);
+      EXPECT_NEAR(gpu.counts.lobes_per_car_pixel, cpu.counts.lobes_per_car_pixel,
+                  0.01 * cpu.counts.lobes_per_car_pixel);
+      if (warp == material::WarpMode::kAnisotropicSplit) {
+        EXPECT_GT(gpu.counts.lobes_per_car_pixel, 2.5);
+      }
+    }
 }
 
 // Mean of the car layer's luminance over covered pixels.
@@ -227,6 +257,51 @@ TEST_F(TripleProductRendererGL, FurnaceLambertianSphereUnderConstantLight) {
     // Against the exact albedo × L: the SG's energy excess, nothing more.
     EXPECT_NEAR(mean * sg_cosine / 3.14159265358979, 1.0, 0.09);
   }
+}
+
+// The Monte-Carlo baseline (RenderOptions::monte_carlo_samples) in a furnace: a Lambertian sphere
+// under a constant map reflects exactly albedo × L (an unbiased estimator's mean over the sphere,
+// within its noise), and the SG renderer's unshadowed value is that times the cosine SG's energy,
+// 1.0816.
+TEST_F(TripleProductRendererGL, MonteCarloShaderConvergesInAFurnace) {
+  const PinholeCamera cam = PinholeCamera::LookAt({0, 1.0, 3.0}, {0, 1.0, 0}, 30, kW, kH);
+  const sphere::EquirectImage map(64, 32, 2.f);
+  RenderOptions o;
+  o.voxel_resolution = 64;
+  o.ground = false;
+  o.materials = {ParseMaterialOverride("lambert:0.5,0.5,0.5")};
+  lighting::SgLighting light;
+  light.constant = glm::vec3(2.0f);
+  TripleProductRenderer sg(LambertSphere(), glm::dmat4(1.0), o);
+  sg.SetLighting(light);
+  const double sg_mean = MeanCarLuma(sg.Render(cam));
+  o.monte_carlo_samples = 64;
+  TripleProductRenderer mc(LambertSphere(), glm::dmat4(1.0), o);
+  mc.SetLighting(light);
+  EXPECT_THROW(mc.Render(cam), Error);  // no map yet
+  mc.SetEnvironment(map);
+  const RenderResult res = mc.Render(cam);
+  EXPECT_THROW(mc.Render(cam, ShadeDevice::kCpu), Error);
+  ASSERT_TRUE(AllFinite(res.car));
+  double mean = 0, var = 0;
+  int n = 0;
+  for (std::size_t i = 0; i < res.car_alpha.size(); ++i)
+    if (res.car_alpha[i] > 0.5f) {
+      mean += res.car.rgb[3 * i];
+      var += res.car.rgb[3 * i] * res.car.rgb[3 * i];
+      ++n;
+    }
+  mean /= n;
+  const double sd = std::sqrt(std::max(0.0, var / n - mean * mean));
+  const double sg_cosine = lighting::Integral({{0, 1, 0}, material::kCosineSgLambda, material::kCosineSgAmplitude});
+  std::printf("MC furnace: %d px, mean %.4f (exact 1), per-pixel sd %.4f at 64 spp; SG / MC %.4f (cosine SG %.4f)\n", n,
+              mean, sd, sg_mean / mean, sg_cosine / 3.14159265358979);
+  EXPECT_GT(n, 400);
+  // The sphere's own voxels shadow a little of the grazing sky (0.5 % for the SG cones).
+  EXPECT_NEAR(mean, 1.0, 0.02);
+  EXPECT_GT(sd, 0.0);  // a real estimator: per-pixel noise, not a closed form
+  EXPECT_LT(sd, 0.15);
+  EXPECT_NEAR(sg_mean / mean, sg_cosine / 3.14159265358979, 0.025);
 }
 
 TEST_F(TripleProductRendererGL, ShadowUnderTheCarAndNoneWithoutIt) {

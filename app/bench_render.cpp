@@ -1,0 +1,569 @@
+// odvr bench render (issue 4): the triple-product renderer against Cycles references — mean
+// relative error and SSIM on car pixels, the shadow ratio's error, shade and total ms — over
+// lighting levels × cones × voxel resolution, beside the brute-force Monte-Carlo shader
+// (RenderOptions::monte_carlo_samples) on the same device at several sample counts. Writes a
+// Markdown table, the rows (TSV), and a plot of error against shade time.
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "app/bench_common.h"
+#include "app/commands.h"
+#include "engine/core/atomic_file.h"
+#include "engine/core/error.h"
+#include "engine/gl/context.h"
+#include "engine/image/image_io.h"
+#include "engine/image/ssim.h"
+#include "engine/lighting/lighting_builder.h"
+#include "engine/render/triple_product_renderer.h"
+#include "engine/scene/gltf_scene.h"
+
+namespace odvr::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct BenchRenderOptions {
+  std::string reference_dir = "media/reference";
+  std::string street_dir;         // default: ../shared/data/street_a (frame 10), when present
+  std::vector<std::string> only;  // reference names to run (default: all)
+  std::vector<int> levels = {2, 3, 5};
+  std::vector<int> cones = {1, 7, 19};
+  std::vector<int> voxels = {64, 128, 256};
+  std::vector<int> mc_samples = {4, 16, 64, 256};
+  bool lobe_modes = true;     // also the four warp × cosine modes at the default configuration
+  bool hd_row = true;         // a 1280×720 row (shade ms)
+  bool ground_bounce = true;  // the media maps' lower half = Cycles' catcher seen from the car
+  std::string out_dir = "docs/benchmarks";
+  bool report_only = false;
+};
+
+// The default configuration, the centre of the one-at-a-time sweep.
+constexpr int kDefaultLevels = 5, kDefaultCones = 7, kDefaultVoxels = 128;
+
+struct Row {
+  std::string reference, method, lobes;  // method: "sg" or "mc"; lobes: "iso-axis", "split-sg", ...
+  int width = 0, height = 0;
+  int levels = 0, cones = 0, voxels = 0, samples = 0;
+  double mean_rel = 0, rel_l1 = 0, bias = 0, ssim = 0, shadow_mae = -1;  // shadow_mae < 0: no shadow reference
+  double shade_ms = 0, total_ms = 0;
+  int car_pixels = 0, shadow_pixels = 0;
+};
+
+struct Reference {
+  std::string name;
+  sphere::EquirectImage env, rgb, shadow;  // shadow empty: none
+  std::vector<float> mask;
+  glm::dmat3 world_from_env{1.0};
+  glm::dmat4 world_from_model{1.0};
+  render::PinholeCamera camera;
+  fs::path model;
+  std::vector<render::MaterialOverride> materials;
+};
+
+double Luma(const float* c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
+
+glm::dvec3 Vec3(const nlohmann::json& j) {
+  return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()};
+}
+
+// Cycles' scene has the catcher under the car: seen from the car, everything below the horizon
+// is that plane, diffuse albedo 0.18 (references.json), lit by the map's upper half. Both
+// renderers here light from the map's lower half, so the map's lower half becomes that plane's
+// radiance, 0.18 E / π, E the horizontal irradiance from the upper half (the car's own shadow on
+// the plane, which Cycles does see, is left out).
+void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo) {
+  const int w = env->width, h = env->height;
+  glm::dvec3 e(0);
+  for (int y = 0; y < h; ++y) {
+    const double lat = 3.14159265358979323846 * (0.5 - (y + 0.5) / h);
+    if (lat <= 0) continue;
+    const double d_omega = (2 * 3.14159265358979323846 / w) * (3.14159265358979323846 / h) * std::cos(lat);
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) e[c] += env->at(x, y)[c] * std::sin(lat) * d_omega;
+  }
+  const glm::dvec3 radiance = albedo * e / 3.14159265358979323846;
+  for (int y = h / 2; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) env->at(x, y)[c] = static_cast<float>(radiance[c]);
+}
+
+std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& repo, bool ground_bounce) {
+  const fs::path json_path = dir / "references.json";
+  std::ifstream f(json_path);
+  if (!f) throw Error(json_path.string(), "cannot be read");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(f);
+  } catch (const std::exception& e) {
+    throw Error(json_path.string(), std::string("is not JSON: ") + e.what());
+  }
+  std::vector<Reference> refs;
+  try {
+    for (const auto& im : j.at("images")) {
+      Reference r;
+      r.name = im.at("name").get<std::string>();
+      r.model = repo / j.at("model").get<std::string>();
+      r.env = image::LoadImage(repo / im.at("env").get<std::string>(), {.max_width = 8192, .require_equirect = true});
+      image::SanitizePixels(&r.env);  // Cycles clamps the lossy EXR's negative pixels to 0 too
+      if (ground_bounce)
+        ReplaceLowerHemisphereByGround(&r.env, j.at("catcher").at("albedo_seen_by_the_car").get<double>());
+      const auto& m = im.at("env_world_from_env_odvr");
+      for (int row = 0; row < 3; ++row)
+        for (int c = 0; c < 3; ++c) r.world_from_env[c][row] = m.at(row).at(c).get<double>();
+      r.rgb = image::LoadImage(dir / im.at("files").at("rgba").get<std::string>());
+      r.shadow = image::LoadImage(dir / im.at("files").at("shadow").get<std::string>());
+      const sphere::EquirectImage mask = image::LoadImage(dir / im.at("files").at("mask").get<std::string>());
+      r.mask.resize(static_cast<std::size_t>(mask.width) * mask.height);
+      for (std::size_t i = 0; i < r.mask.size(); ++i) r.mask[i] = mask.rgb[3 * i];
+      const auto& cam = im.at("camera");
+      const auto& in = cam.at("intrinsics_opencv");
+      r.camera = render::PinholeCamera::LookAt(Vec3(cam.at("position")), Vec3(cam.at("target")),
+                                               cam.at("vfov_deg").get<double>(), in.at("width").get<int>(),
+                                               in.at("height").get<int>(), Vec3(cam.at("up")));
+      const auto& mp = im.at("material_params");
+      const auto base = Vec3(mp.at("base_color"));
+      r.materials.push_back(render::ParseMaterialOverride(fmt::format("mr:{},{},{},{},{}", base.x, base.y, base.z,
+                                                                      mp.at("metallic").get<double>(),
+                                                                      mp.at("roughness").get<double>())));
+      if (r.rgb.width != r.camera.width || r.mask.size() != r.rgb.rgb.size() / 3 || r.shadow.width != r.rgb.width)
+        throw Error(json_path.string(), r.name + ": the image sizes disagree with the camera");
+      refs.push_back(std::move(r));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(json_path.string(), std::string("a field is missing or malformed: ") + e.what());
+  }
+  return refs;
+}
+
+glm::dmat4 Matrix4(const nlohmann::json& rows) {
+  glm::dmat4 m(1.0);
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) m[c][r] = rows.at(static_cast<std::size_t>(r)).at(static_cast<std::size_t>(c));
+  return m;
+}
+
+// street_a's frame 10 relight reference (tests/engine/render/cycles_reference_test.cpp explains
+// the frames), box-filtered to half size. Its film holds no shadow, so no shadow error.
+Reference LoadStreetFrame10(const fs::path& street) {
+  const glm::dmat3 yup_from_zup(glm::dvec3(1, 0, 0), glm::dvec3(0, 0, -1), glm::dvec3(0, 1, 0));
+  const fs::path pose_path = street / "car_pose.json";
+  std::ifstream f(pose_path);
+  if (!f) throw Error(pose_path.string(), "cannot be read");
+  const auto j = nlohmann::json::parse(f);
+  const auto& fr = j.at("frames").at(0);
+  if (fr.at("frame").get<int>() != 10) throw Error(pose_path.string(), "frames[0] is not frame 10");
+  Reference r;
+  r.name = "street_a_f10";
+  r.model = street / "car.glb";
+  r.world_from_model = Matrix4(fr.at("world_yup_from_car_gltf"));
+  const glm::dmat4 cam = Matrix4(fr.at("world_from_persp_cam_opencv"));
+  const fs::path ref_path = street / "augment/frame_000010/relight_ref.exr";
+  const sphere::EquirectImage full = image::LoadImage(ref_path);
+  int aw = 0, ah = 0;
+  const std::vector<float> alpha = image::LoadAlpha(ref_path, &aw, &ah);
+  const int w = full.width / 2, h = full.height / 2;
+  r.rgb = sphere::EquirectImage(w, h, 0.f);
+  r.mask.assign(static_cast<std::size_t>(w) * h, 0.f);
+  for (int y = 0; y < 2 * h; ++y)
+    for (int x = 0; x < 2 * w; ++x) {
+      const std::size_t o = static_cast<std::size_t>(y / 2) * w + x / 2, i = static_cast<std::size_t>(y) * aw + x;
+      for (int c = 0; c < 3; ++c) r.rgb.rgb[3 * o + c] += full.rgb[3 * i + c] / 4;
+      r.mask[o] += alpha[i] / 4;
+    }
+  r.camera.position = yup_from_zup * glm::dvec3(cam[3]);
+  r.camera.world_from_camera = yup_from_zup * glm::dmat3(cam);
+  r.camera.vfov_deg = j.at("persp_camera").at("vfov_deg").get<double>();
+  r.camera.width = w;
+  r.camera.height = h;
+  const glm::dmat3 rig = glm::dmat3(Matrix4(fr.at("world_from_rig")));
+  r.world_from_env = yup_from_zup * rig * glm::transpose(yup_from_zup);
+  r.env = image::LoadImage(street / "pano_hdr/000010.exr", {.max_width = 8192, .require_equirect = true});
+  image::SanitizePixels(&r.env);
+  return r;
+}
+
+// The errors of one render against its reference (car pixels: covered fully in Cycles and in ours).
+void Score(const Reference& ref, const render::RenderResult& r, Row* row) {
+  const int w = ref.rgb.width, h = ref.rgb.height;
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  std::vector<float> car(n, 0.f), ya(n), yb(n);
+  double mean_ref = 0;
+  int count = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    car[i] = ref.mask[i] > 0.99f && r.car_alpha[i] > 0.5f ? 1.f : 0.f;
+    ya[i] = static_cast<float>(Luma(&r.car.rgb[3 * i]) * r.car_alpha[i]);
+    yb[i] = static_cast<float>(Luma(&ref.rgb.rgb[3 * i]));
+    if (car[i] > 0) {
+      mean_ref += yb[i];
+      ++count;
+    }
+  }
+  row->car_pixels = count;
+  if (count == 0) return;
+  mean_ref /= count;
+  double sum_rel = 0, sum_abs = 0, sum_ref = 0, sum_ours = 0;
+  std::vector<float> ref_car;
+  for (std::size_t i = 0; i < n; ++i)
+    if (car[i] > 0) {
+      sum_rel += std::abs(ya[i] - yb[i]) / std::max<double>(yb[i], 0.05 * mean_ref);
+      sum_abs += std::abs(ya[i] - yb[i]);
+      sum_ref += yb[i];
+      sum_ours += ya[i];
+      ref_car.push_back(yb[i]);
+    }
+  row->mean_rel = sum_rel / count;
+  row->rel_l1 = sum_abs / sum_ref;
+  row->bias = sum_ours / sum_ref;
+  // SSIM on the luminance scaled so that Cycles' 99th percentile on the car is 1.
+  std::nth_element(ref_car.begin(), ref_car.begin() + static_cast<long>(ref_car.size() * 99 / 100), ref_car.end());
+  const double scale = 1.0 / std::max(1e-12, static_cast<double>(ref_car[ref_car.size() * 99 / 100]));
+  for (std::size_t i = 0; i < n; ++i) {
+    ya[i] = static_cast<float>(ya[i] * scale);
+    yb[i] = static_cast<float>(yb[i] * scale);
+  }
+  row->ssim = image::MeanSsim(ya, yb, w, h, car, 1.0);
+  if (ref.shadow.empty()) return;
+  double shadow_abs = 0;
+  int shadow = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double sr = Luma(&ref.shadow.rgb[3 * i]);
+    if (!(sr < 0.95) || ref.mask[i] > 0.01f || r.car_alpha[i] > 0.f || r.ground_mask[i] < 0.5f) continue;
+    shadow_abs += std::abs(Luma(&r.shadow.rgb[3 * i]) - sr);
+    ++shadow;
+  }
+  row->shadow_pixels = shadow;
+  row->shadow_mae = shadow > 0 ? shadow_abs / shadow : -1;
+}
+
+std::string LobeName(const material::LobeOptions& l) {
+  return std::string(l.warp == material::WarpMode::kIsotropic ? "iso" : "split") + "-" +
+         (l.cosine == material::CosineTerm::kAtLobeAxis ? "axis" : "sg");
+}
+
+int ConeRings(int cones) {
+  switch (cones) {
+    case 1:
+      return 0;
+    case 7:
+      return 1;
+    case 19:
+      return 2;
+    case 37:
+      return 3;
+    default:
+      throw UsageError("--cones", "must be 1, 7, 19 or 37, got " + std::to_string(cones));
+  }
+}
+
+Row RenderRow(const Reference& ref, const std::string& method, int levels, int cones, int voxels, int samples,
+              const material::LobeOptions& lobes, int width = 0, int height = 0) {
+  render::RenderOptions o;
+  o.lighting_levels = levels;
+  o.cone_rings = ConeRings(cones);
+  o.voxel_resolution = voxels;
+  o.materials = ref.materials;
+  o.lobes = lobes;
+  o.monte_carlo_samples = samples;
+  lighting::LightingOptions lo;
+  lo.transform.levels = levels;
+  lighting::LightingBuilder builder(lo);
+  const lighting::SgLighting model = builder.Build(ref.env);
+  render::TripleProductRenderer renderer(scene::LoadGltfScene(ref.model), ref.world_from_model, o);
+  renderer.SetLighting(model, ref.world_from_env);
+  renderer.SetEnvironment(ref.env);
+  render::PinholeCamera camera = ref.camera;
+  const bool scored = width == 0;
+  if (!scored) {
+    camera.width = width;
+    camera.height = height;
+  }
+  const render::RenderResult r = renderer.Render(camera);
+  Row row;
+  row.reference = ref.name;
+  row.method = method;
+  row.lobes = method == "mc" ? "exact" : LobeName(lobes);
+  row.width = camera.width;
+  row.height = camera.height;
+  row.levels = method == "mc" ? 0 : levels;
+  row.cones = method == "mc" ? 0 : cones;
+  row.voxels = voxels;
+  row.samples = samples;
+  row.shade_ms = r.ms.shade;
+  row.total_ms = r.ms.total;
+  if (scored) Score(ref, r, &row);
+  return row;
+}
+
+const char* kHeader =
+    "reference\tmethod\tlobes\twidth\theight\tlevels\tcones\tvoxels\tsamples\tmean_rel\trel_l1\tbias\tssim\t"
+    "shadow_mae\tshadow_px\tcar_px\tshade_ms\ttotal_ms";
+
+std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
+  std::ifstream in(tsv);
+  if (!in) throw Error(tsv.string(), "cannot be read");
+  std::vector<Row> rows;
+  std::string line;
+  const std::string tag = "# odvr bench render on ";
+  while (std::getline(in, line)) {
+    if (line.rfind(tag, 0) == 0) {
+      *machine = line.substr(tag.size());
+      continue;
+    }
+    if (line.empty() || line.rfind("reference\t", 0) == 0) continue;
+    std::vector<std::string> v;
+    std::istringstream f(line);
+    std::string field;
+    while (std::getline(f, field, '\t')) v.push_back(field);
+    if (v.size() != 18) throw Error(tsv.string(), "a row without 18 columns: " + line);
+    try {
+      Row r;
+      r.reference = v[0];
+      r.method = v[1];
+      r.lobes = v[2];
+      r.width = std::stoi(v[3]);
+      r.height = std::stoi(v[4]);
+      r.levels = std::stoi(v[5]);
+      r.cones = std::stoi(v[6]);
+      r.voxels = std::stoi(v[7]);
+      r.samples = std::stoi(v[8]);
+      r.mean_rel = std::stod(v[9]);
+      r.rel_l1 = std::stod(v[10]);
+      r.bias = std::stod(v[11]);
+      r.ssim = std::stod(v[12]);
+      r.shadow_mae = std::stod(v[13]);
+      r.shadow_pixels = std::stoi(v[14]);
+      r.car_pixels = std::stoi(v[15]);
+      r.shade_ms = std::stod(v[16]);
+      r.total_ms = std::stod(v[17]);
+      rows.push_back(r);
+    } catch (const std::exception&) {
+      throw Error(tsv.string(), "a malformed number in: " + line);
+    }
+  }
+  return rows;
+}
+
+std::string F(double v, int digits = 3) { return fmt::format("{:.{}f}", v, digits); }
+
+bool IsDefault(const Row& r, const std::string& lobes) {
+  return r.method == "sg" && r.lobes == lobes && r.levels == kDefaultLevels && r.cones == kDefaultCones &&
+         r.voxels == kDefaultVoxels && r.car_pixels > 0;
+}
+
+// The lobe mode the defaults use (RenderOptions{}.lobes), as the rows name it.
+std::string DefaultLobes() { return LobeName(render::RenderOptions{}.lobes); }
+
+// MC shade ms at a given error, interpolated in log-log between the two MC rows around it;
+// `bound` is set when the error lies outside the rows (then the nearest row's ms, a bound).
+double McMsAtError(const std::vector<const Row*>& mc, double error, std::string* bound) {
+  std::vector<const Row*> s = mc;
+  std::sort(s.begin(), s.end(), [](const Row* a, const Row* b) { return a->samples < b->samples; });
+  for (std::size_t i = 0; i + 1 < s.size(); ++i) {
+    const double e0 = s[i]->mean_rel, e1 = s[i + 1]->mean_rel;
+    if ((e0 - error) * (e1 - error) <= 0 && e0 != e1) {
+      const double t = (std::log(error) - std::log(e0)) / (std::log(e1) - std::log(e0));
+      *bound = "";
+      return std::exp(std::log(s[i]->shade_ms) + t * (std::log(s[i + 1]->shade_ms) - std::log(s[i]->shade_ms)));
+    }
+  }
+  double best = 1e300;
+  const Row* closest = nullptr;
+  for (const Row* r : s)
+    if (std::abs(r->mean_rel - error) < best) {
+      best = std::abs(r->mean_rel - error);
+      closest = r;
+    }
+  if (!closest) return 0;
+  const bool below_all = std::all_of(s.begin(), s.end(), [&](const Row* r) { return r->mean_rel > error; });
+  *bound = below_all ? ">" : "<";
+  return below_all ? s.back()->shade_ms : s.front()->shade_ms;
+}
+
+std::string Targets(const std::vector<Row>& rows) {
+  std::ostringstream md;
+  std::set<std::string> refs;
+  for (const auto& r : rows)
+    if (r.car_pixels > 0) refs.insert(r.reference);
+  const std::string lobes = DefaultLobes();
+  md << "\n## Targets (issue 4), from the rows above\n\n"
+     << "Default configuration: " << kDefaultLevels << " levels, " << kDefaultCones << " cones, " << kDefaultVoxels
+     << "³ voxels, lobes `" << lobes << "`. Speed: the Monte-Carlo shader's shade ms at the SG renderer's error, "
+     << "interpolated (log-log) between its rows; `>` marks an SG error below every MC row (the ratio is then a "
+        "lower bound, from MC's largest sample count), `<` one above every MC row (an upper bound).\n\n"
+     << "| reference | mean rel. error | ≤ 10 % | SSIM | shadow MAE | shade ms | MC ms at that error | speed-up |\n"
+     << "|---|---|---|---|---|---|---|---|\n";
+  int met = 0, total = 0, fast = 0, fast_total = 0;
+  for (const auto& name : refs) {
+    const Row* sg = nullptr;
+    std::vector<const Row*> mc;
+    for (const auto& r : rows) {
+      if (r.reference != name) continue;
+      if (IsDefault(r, lobes)) sg = &r;
+      if (r.method == "mc" && r.car_pixels > 0) mc.push_back(&r);
+    }
+    if (!sg) continue;
+    ++total;
+    met += sg->mean_rel <= 0.10;
+    std::string bound;
+    const double mc_ms = McMsAtError(mc, sg->mean_rel, &bound);
+    std::string speed = "–";
+    if (mc_ms > 0) {
+      ++fast_total;
+      fast += mc_ms / sg->shade_ms >= 20 && bound != "<";
+      speed = bound + F(mc_ms / sg->shade_ms, 1) + "×";
+    }
+    md << "| " << name << " | " << F(sg->mean_rel) << " | " << (sg->mean_rel <= 0.10 ? "yes" : "no") << " | "
+       << F(sg->ssim) << " | " << (sg->shadow_mae >= 0 ? F(sg->shadow_mae) : "–") << " | " << F(sg->shade_ms, 1)
+       << " | " << (mc_ms > 0 ? bound + F(mc_ms, 0) : "–") << " | " << speed << " |\n";
+  }
+  md << "\n**Mean relative error ≤ 10 % on car pixels:** " << met << " of " << total
+     << " references. **≥ 20× faster than MC at equal error:** " << fast << " of " << fast_total << ".\n";
+  for (const auto& r : rows)
+    if (r.car_pixels == 0 && r.method == "sg")
+      md << "\n**" << r.width << "×" << r.height << "** (" << r.reference << ", default configuration): shade "
+         << F(r.shade_ms, 1) << " ms, total " << F(r.total_ms, 1) << " ms = " << F(1000.0 / r.total_ms, 2)
+         << " fps (target on a GPU: ≥ 60 fps).\n";
+  return md.str();
+}
+
+void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, const std::string& machine) {
+  fs::create_directories(o.out_dir);
+  const fs::path tsv = fs::path(o.out_dir) / "render.tsv";
+  std::ostringstream t;
+  t << "# odvr bench render on " << machine << "\n" << kHeader << "\n";
+  for (const auto& r : rows)
+    t << r.reference << "\t" << r.method << "\t" << r.lobes << "\t" << r.width << "\t" << r.height << "\t" << r.levels
+      << "\t" << r.cones << "\t" << r.voxels << "\t" << r.samples << "\t" << r.mean_rel << "\t" << r.rel_l1 << "\t"
+      << r.bias << "\t" << r.ssim << "\t" << r.shadow_mae << "\t" << r.shadow_pixels << "\t" << r.car_pixels << "\t"
+      << r.shade_ms << "\t" << r.total_ms << "\n";
+  WriteTextAtomically(tsv, t.str());
+
+  std::ostringstream md;
+  md << "# Renderer: error against Cycles, and time\n\n"
+     << "Made by `odvr bench render` on " << machine << ". References: `media/reference/` (the demo car under "
+     << "three maps × a diffuse and a glossy paint, 320×180, with Cycles' shadow-catcher ratio) and street_a's "
+     << "frame 10 relight (its own car paint; the reference holds no shadow). Car pixels: Cycles coverage > 0.99 "
+     << "and ours > 0.5. `mean_rel`: mean over car pixels of |Y − Y_ref| / max(Y_ref, 0.05 mean Y_ref) (Y the "
+     << "luminance); `rel_l1` = Σ|Y − Y_ref| / ΣY_ref; `bias` = ΣY / ΣY_ref; `ssim`: SSIM (11×11 Gaussian "
+     << "window) of the luminance on car pixels, both scaled by Cycles' 99th percentile; `shadow`: mean "
+     << "|ratio − ratio_ref| where Cycles' ratio < 0.95 off the car. `sg` rows: the triple-product renderer, "
+     << "lobes `iso`/`split` (eq. 4.10's warp / the anisotropic split) × `axis`/`sg` (the cosine at the lobe "
+     << "axis / as an SG); `mc` rows: the Monte-Carlo shader on the same G-buffer and voxels. Times are one "
+     << "render each, on the device named above.\n\n"
+     << "| reference | method | lobes | levels | cones | voxels | samples | mean_rel | rel_l1 | bias | ssim | shadow | "
+        "shade ms | total ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& r : rows) {
+    if (r.car_pixels == 0) continue;
+    md << "| " << r.reference << " | " << r.method << " | " << r.lobes << " | "
+       << (r.levels ? std::to_string(r.levels) : "–") << " | " << (r.cones ? std::to_string(r.cones) : "–") << " | "
+       << r.voxels << " | " << (r.samples ? std::to_string(r.samples) : "–") << " | " << F(r.mean_rel) << " | "
+       << F(r.rel_l1) << " | " << F(r.bias) << " | " << F(r.ssim) << " | "
+       << (r.shadow_mae >= 0 ? F(r.shadow_mae) : "–") << " | " << F(r.shade_ms, 1) << " | " << F(r.total_ms, 1)
+       << " |\n";
+  }
+  md << Targets(rows);
+  md << "\nEvery row is in `render.tsv`; `render.png` plots mean_rel against shade ms.\n\n![error against time]"
+        "(render.png)\n";
+  WriteTextAtomically(fs::path(o.out_dir) / "render.md", md.str());
+
+  const fs::path script = fs::path(o.out_dir) / "render.gnuplot";
+  std::ostringstream gp;
+  const std::string data = (fs::path(o.out_dir) / "render.tsv").string();
+  gp << "set terminal pngcairo size 1000,600 noenhanced\nset output '" << (fs::path(o.out_dir) / "render.png").string()
+     << "'\nset datafile separator '\\t'\nset logscale xy\nset key outside right\nset grid\n"
+     << "set title 'car pixels: mean relative error against Cycles vs shade time'\nset xlabel 'shade ms'\n"
+     << "set ylabel 'mean relative error'\nplot '" << data
+     << "' using (strcol(2) eq 'sg' && $16 > 0 ? $17 : 1/0):10 with points pt 7 title 'SG triple product', '" << data
+     << "' using (strcol(2) eq 'mc' && $16 > 0 ? $17 : 1/0):10 with points pt 5 title 'Monte-Carlo'\n";
+  WriteTextAtomically(script, gp.str());
+  if (std::system(("gnuplot " + script.string() + " 2>/dev/null").c_str()) != 0)
+    spdlog::warn("bench render: gnuplot failed; the table and TSV are written, the plot is not");
+}
+
+int RunBenchRender(BenchRenderOptions o) {
+  if (o.report_only) {
+    std::string machine = "unknown";
+    const auto rows = ReadRows(fs::path(o.out_dir) / "render.tsv", &machine);
+    WriteReport(rows, o, machine);
+    std::cout << "bench render: report rewritten from " << rows.size() << " rows\n";
+    return 0;
+  }
+  const fs::path repo = fs::path(ODVR_SOURCE_DIR);
+  std::vector<Reference> refs;
+  if (!o.reference_dir.empty()) {
+    const fs::path dir = fs::path(o.reference_dir).is_absolute() ? fs::path(o.reference_dir) : repo / o.reference_dir;
+    refs = LoadMediaReferences(dir, repo, o.ground_bounce);
+  }
+  const fs::path street = o.street_dir.empty() ? repo / ".." / "shared" / "data" / "street_a" : fs::path(o.street_dir);
+  if (fs::exists(street / "augment/frame_000010/relight_ref.exr")) refs.push_back(LoadStreetFrame10(street));
+  if (!o.only.empty())
+    std::erase_if(refs,
+                  [&](const Reference& r) { return std::find(o.only.begin(), o.only.end(), r.name) == o.only.end(); });
+  if (refs.empty()) throw UsageError("bench render", "no reference to run");
+
+  gl::HeadlessContext context;
+  const std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
+  // One-at-a-time around the default: every level count, cone count and resolution once.
+  std::vector<std::array<int, 3>> configs;
+  for (int l : o.levels) configs.push_back({l, kDefaultCones, kDefaultVoxels});
+  for (int c : o.cones) configs.push_back({kDefaultLevels, c, kDefaultVoxels});
+  for (int v : o.voxels) configs.push_back({kDefaultLevels, kDefaultCones, v});
+  std::sort(configs.begin(), configs.end());
+  configs.erase(std::unique(configs.begin(), configs.end()), configs.end());
+  std::vector<material::LobeOptions> modes = {render::RenderOptions{}.lobes};
+  if (o.lobe_modes)
+    for (auto warp : {material::WarpMode::kIsotropic, material::WarpMode::kAnisotropicSplit})
+      for (auto cosine : {material::CosineTerm::kAtLobeAxis, material::CosineTerm::kAsSg})
+        if (!(warp == modes[0].warp && cosine == modes[0].cosine)) modes.push_back({cosine, warp});
+  std::vector<Row> rows;
+  BenchProgress progress("bench render", static_cast<long>(refs.size()) + (o.hd_row ? 1 : 0));
+  for (const auto& ref : refs) {
+    for (const auto& c : configs) rows.push_back(RenderRow(ref, "sg", c[0], c[1], c[2], 0, modes[0]));
+    for (std::size_t m = 1; m < modes.size(); ++m)
+      rows.push_back(RenderRow(ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[m]));
+    for (int n : o.mc_samples) rows.push_back(RenderRow(ref, "mc", kDefaultLevels, 1, kDefaultVoxels, n, modes[0]));
+    progress.Step(ref.name);
+  }
+  if (o.hd_row) {
+    rows.push_back(
+        RenderRow(refs.front(), "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 1280, 720));
+    progress.Step("1280x720");
+  }
+  WriteReport(rows, o, machine);
+  std::cout << "bench render: " << rows.size() << " rows; wrote " << o.out_dir
+            << "/render.md, render.tsv, render.png\n";
+  return 0;
+}
+
+}  // namespace
+
+CommandFn AddBenchRender(CLI::App* sub) {
+  auto o = std::make_shared<BenchRenderOptions>();
+  sub->add_option("--references", o->reference_dir, "Directory with references.json (relative: to the repository)");
+  sub->add_option("--street", o->street_dir, "street_a dataset for its frame-10 reference (default ../shared/data)");
+  sub->add_option("--only", o->only, "Run only these references (by name)")->delimiter(',');
+  sub->add_option("--levels", o->levels, "Lighting levels to sweep")->delimiter(',');
+  sub->add_option("--cones", o->cones, "Cone counts to sweep (1, 7, 19, 37)")->delimiter(',');
+  sub->add_option("--voxels", o->voxels, "Voxel resolutions to sweep")->delimiter(',');
+  sub->add_option("--mc-samples", o->mc_samples, "Monte-Carlo samples per pixel, one row each")->delimiter(',');
+  sub->add_flag("!--no-lobe-modes", o->lobe_modes, "Skip the warp × cosine rows");
+  sub->add_flag("!--no-hd", o->hd_row, "Skip the 1280x720 timing row");
+  sub->add_flag("!--no-ground-bounce", o->ground_bounce,
+                "Light the media references from their maps' lower half, not from Cycles' catcher plane");
+  sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
+  sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
+  return [o] { return RunBenchRender(*o); };
+}
+
+}  // namespace odvr::app

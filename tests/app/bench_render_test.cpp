@@ -1,0 +1,81 @@
+// `odvr bench render --report-only` as a user runs it: the report and its targets are computed
+// from the TSV rows (here a hand-made TSV whose figures are easy to check), and a malformed TSV
+// is rejected naming the file. The full bench renders for minutes; its rows are in
+// docs/benchmarks/render.tsv.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "tests/app/run_odvr.h"
+
+namespace {
+
+using odvr::testing::CliRun;
+using odvr::testing::RunOdvr;
+using odvr::testing::ScratchDir;
+
+namespace fs = std::filesystem;
+
+std::string ReadText(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+const char* kHeader =
+    "reference\tmethod\tlobes\twidth\theight\tlevels\tcones\tvoxels\tsamples\tmean_rel\trel_l1\tbias\tssim\t"
+    "shadow_mae\tshadow_px\tcar_px\tshade_ms\ttotal_ms\n";
+
+TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
+  ScratchDir d("bench_render");
+  {
+    std::ofstream tsv(d.dir / "render.tsv");
+    tsv << "# odvr bench render on a test machine\n" << kHeader;
+    // The default configuration (5 levels, 7 cones, 128³, split-axis) at 0.2 error in 100 ms.
+    tsv << "car\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.2\t0.2\t0.9\t0.8\t0.05\t100\t1000\t100\t120\n";
+    tsv << "car\tsg\tsplit-axis\t320\t180\t2\t7\t128\t0\t0.3\t0.3\t0.9\t0.7\t0.05\t100\t1000\t50\t70\n";
+    // MC: 0.4 at 200 ms, 0.1 at 800 ms; log-log interpolation puts 0.2 at 400 ms, 4× the SG time.
+    tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t4\t0.4\t0.4\t0.9\t0.3\t0.1\t100\t1000\t200\t220\n";
+    tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t16\t0.1\t0.1\t0.9\t0.6\t0.05\t100\t1000\t800\t820\n";
+    // A reference whose SG error meets the target and lies below every MC row: a lower bound.
+    tsv << "paint\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.08\t0.08\t1.0\t0.9\t-1\t0\t900\t50\t60\n";
+    tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t4\t0.5\t0.5\t1.0\t0.2\t-1\t0\t900\t100\t110\n";
+    tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t64\t0.2\t0.2\t1.0\t0.5\t-1\t0\t900\t2000\t2010\n";
+    // The timing-only row at 1280×720: 250 ms in all is 4 fps.
+    tsv << "car\tsg\tsplit-axis\t1280\t720\t5\t7\t128\t0\t0\t0\t0\t0\t-1\t0\t0\t200\t250\n";
+  }
+  const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("8 rows"), std::string::npos) << r.out;
+  const std::string md = ReadText(d.dir / "render.md");
+  EXPECT_NE(md.find("a test machine"), std::string::npos);
+  EXPECT_NE(md.find("| car | 0.200 | no | 0.800 | 0.050 | 100.0 | 400 | 4.0× |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| paint | 0.080 | yes | 0.900 | – | 50.0 | >2000 | >40.0× |"), std::string::npos) << md;
+  EXPECT_NE(md.find("≤ 10 % on car pixels:** 1 of 2"), std::string::npos) << md;
+  EXPECT_NE(md.find("at equal error:** 1 of 2"), std::string::npos) << md;
+  EXPECT_NE(md.find("= 4.00 fps"), std::string::npos) << md;
+  EXPECT_TRUE(fs::exists(d.dir / "render.gnuplot"));
+  // The TSV is read back unchanged.
+  EXPECT_NE(ReadText(d.dir / "render.tsv").find("paint\tmc\texact"), std::string::npos);
+}
+
+TEST(BenchRender, ReportOnlyRejectsAMalformedTable) {
+  ScratchDir d("bench_render");
+  {
+    std::ofstream tsv(d.dir / "render.tsv");
+    tsv << kHeader << "car\tsg\tsplit-axis\t320\t180\t5\t7\n";
+  }
+  const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("render.tsv"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("18 columns"), std::string::npos) << r.err;
+  const CliRun missing = RunOdvr("bench render --report-only --out " + (d.dir / "nowhere").string());
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.err.find("cannot be read"), std::string::npos) << missing.err;
+}
+
+}  // namespace
