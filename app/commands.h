@@ -29,6 +29,7 @@ CommandFn AddExport(CLI::App* sub);
 CommandFn AddBenchLight(CLI::App* sub);
 CommandFn AddBenchRender(CLI::App* sub);
 CommandFn AddBenchStitch(CLI::App* sub);
+CommandFn AddBenchReconstruct(CLI::App* sub);
 CommandFn AddBenchPlayer(CLI::App* sub);
 
 // media/demo/street.mp4 beside the sources or the working directory; throws if absent.

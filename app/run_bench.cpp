@@ -13,6 +13,8 @@ CommandFn AddBench(CLI::App* sub) {
   static const Kind kinds[] = {
       {"light", "Lighting transform: errors and time per level, against least squares and SH", AddBenchLight},
       {"stitch", "Stitching: time and PSNR against the street ground truth, beside OpenCV's pipeline", AddBenchStitch},
+      {"reconstruct", "Structure from motion: ATE, RPE, scale error and time against the ground truth, beside COLMAP",
+       AddBenchReconstruct},
       {"player", "Player: the augmented frame budget (decode, lighting, render, composite) on the demo",
        AddBenchPlayer},
       {"render", "Renderer: error and SSIM against Cycles and time, beside a Monte-Carlo shader", AddBenchRender},
