@@ -27,6 +27,7 @@ struct ReconstructCommand {
   long first = 0, count = 0;
   double rig_height_m = 0;
   bool json = false;
+  bool no_trifocal = false;
 };
 
 std::unique_ptr<capture::Source> OpenFrames(const ReconstructCommand& c, const capture::Rig& rig) {
@@ -52,6 +53,7 @@ int RunReconstruct(const ReconstructCommand& c) {
   tracking::ReconstructionOptions options;
   options.max_frames = c.count;
   options.rig_height_m = c.rig_height_m;
+  options.trifocal = !c.no_trifocal;
   const long total = c.count > 0 ? c.count : std::max(0L, source->frame_count() - c.first);
   const bool tty = ::isatty(STDERR_FILENO);
   const auto t_start = std::chrono::steady_clock::now();
@@ -136,6 +138,8 @@ CommandFn AddReconstruct(CLI::App* sub) {
   sub->add_option("--rig-height", c->rig_height_m, "Rig height above the road in metres (default: the rig file's)");
   sub->add_option("--ground-truth", c->ground_truth,
                   "trajectory_gt.json to evaluate against (ATE, RPE, scale error; added to summary.json)");
+  sub->add_flag("--no-trifocal", c->no_trifocal,
+                "Skip the trifocal check of the tracks (faster; the bundle adjustment's outlier test remains)");
   sub->add_flag("--json", c->json, "Print the summary as JSON (no progress output)");
   return [c] { return RunReconstruct(*c); };
 }

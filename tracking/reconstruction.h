@@ -102,6 +102,13 @@ struct TrifocalCheckSummary {
   double seconds = 0;
 };
 
+// What one rig camera's tracks gave the reconstruction.
+struct CameraContribution {
+  long observations = 0;  // track observations that became point observations (after the trifocal check)
+  long inliers = 0;       // of those, the ones in the final model
+  long rejected = 0;      // the rest: outliers, or points that never agreed with the rig's poses
+};
+
 struct Reconstruction {
   capture::Rig rig;
   std::vector<ReconstructedFrame> frames;
@@ -112,6 +119,10 @@ struct Reconstruction {
   double rig_height_m = 0;
   std::vector<ReconstructionStage> stages;
   std::vector<int> tracks_per_camera;
+  // Per rig camera. A camera whose share of inliers is far below the others' gets a warning: its
+  // images disagree with the rig's motion (another camera's or another time's images, wrong
+  // extrinsics), and the other cameras carry the poses.
+  std::vector<CameraContribution> camera_contributions;
   double mean_track_length = 0;
   int cross_camera_links = 0;
   TrifocalCheckSummary trifocal;

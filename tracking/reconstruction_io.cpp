@@ -197,9 +197,14 @@ std::string ReconstructionSummaryJson(const Reconstruction& r) {
     total += s.seconds;
   }
   nlohmann::json cams = nlohmann::json::array();
-  for (size_t c = 0; c < r.rig.cameras.size(); ++c)
-    cams.push_back(
-        {{"name", r.rig.cameras[c].name}, {"tracks", c < r.tracks_per_camera.size() ? r.tracks_per_camera[c] : 0}});
+  for (size_t c = 0; c < r.rig.cameras.size(); ++c) {
+    const CameraContribution k = c < r.camera_contributions.size() ? r.camera_contributions[c] : CameraContribution{};
+    cams.push_back({{"name", r.rig.cameras[c].name},
+                    {"tracks", c < r.tracks_per_camera.size() ? r.tracks_per_camera[c] : 0},
+                    {"observations", k.observations},
+                    {"inlier_observations", k.inliers},
+                    {"rejected_observations", k.rejected}});
+  }
   int duplicates = 0;
   for (const auto& f : r.frames) duplicates += f.duplicate_of >= 0;
   return nlohmann::json{{"rig", r.rig.path.string()},

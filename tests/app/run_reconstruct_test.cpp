@@ -72,6 +72,21 @@ TEST(RunReconstruct, StreetSixFramesWritesEveryOutputAndMeetsTheTargets) {
   EXPECT_TRUE(nlohmann::json::parse(sj).contains("evaluation"));
 }
 
+TEST(RunReconstruct, NoTrifocalSkipsTheCheck) {
+  if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent";
+  const ScratchDir t{"odvr_run_reconstruct_no_trifocal"};
+  const CliRun r =
+      RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --frames " + (kStreet / "rig").string() +
+              " --count 3 --no-trifocal --json --out " + (t.dir / "rec").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(j["trifocal"]["enabled"].get<bool>());
+  EXPECT_EQ(j["trifocal"]["track_triples_tested"].get<long>(), 0);
+  EXPECT_EQ(j["trifocal"]["observations_after"], j["trifocal"]["observations_before"]);
+  for (const auto& s : j["stages"]) EXPECT_NE(s["name"], "trifocal");
+  EXPECT_EQ(j["frames"].get<int>(), 3);
+}
+
 TEST(RunReconstruct, TooFewFramesIsAUsageError) {
   const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --count 2");
   EXPECT_EQ(r.exit_code, 2);
