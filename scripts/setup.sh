@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # odvr set-up on Debian 12, as root (or with sudo). Idempotent: a second run reuses the build.
-#   scripts/setup.sh demo   install, build, run the default demo
+#   scripts/setup.sh demo   install, build, play the default demo (media/demo, with the car)
 #   scripts/setup.sh test   install, build, run every test
 #   scripts/setup.sh deps   install the Debian packages only
 #   scripts/setup.sh build  install and build
@@ -53,7 +53,9 @@ case "${1:-}" in
   demo)
     install_deps
     build
-    "$BUILD_DIR"/app/odvr info
+    # odvr with no arguments plays media/demo with its car: a window when there is a display,
+    # PNG frames (and where they went) when there is none.
+    "$BUILD_DIR"/app/odvr
     ;;
   *)
     echo "usage: scripts/setup.sh demo|test|deps|build|tools" >&2
