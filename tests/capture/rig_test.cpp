@@ -114,6 +114,32 @@ TEST(Rig, SaveThenLoadRoundTripsEveryModel) {
   EXPECT_EQ(back.cameras[0].image_dir, "front");
 }
 
+// config/demo_rig.json is the demo rig in our own layout: the same cameras as the dataset-style
+// media/demo/rig.json, and its image folders resolve to the demo's images.
+TEST(Rig, TheConfigDemoRigIsTheMediaDemoRig) {
+  const fs::path source(ODVR_SOURCE_DIR);
+  const Rig config = LoadRig(source / "config/demo_rig.json");
+  const Rig media = LoadRig(source / "media/demo/rig.json");
+  ASSERT_EQ(config.camera_count(), 6);
+  ASSERT_EQ(config.camera_count(), media.camera_count());
+  EXPECT_DOUBLE_EQ(config.height_m, media.height_m);
+  for (int i = 0; i < config.camera_count(); ++i) {
+    const auto& a = config.cameras[static_cast<std::size_t>(i)];
+    const auto& b = media.cameras[static_cast<std::size_t>(i)];
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_EQ(a.model.Describe(), b.model.Describe());
+    EXPECT_LT((a.rig_from_cam - b.rig_from_cam).norm(), 1e-12);
+    for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.3, -0.2, 1), Eigen::Vector3d(1, 0.5, 0.2)}) {
+      Eigen::Vector2d pa, pb;
+      ASSERT_EQ(a.model.Project(p, &pa), b.model.Project(p, &pb));
+      EXPECT_LT((pa - pb).norm(), 1e-12);
+    }
+    EXPECT_TRUE(fs::is_directory(config.path.parent_path() / a.image_dir)) << a.image_dir;
+    EXPECT_EQ(fs::canonical(config.path.parent_path() / a.image_dir),
+              fs::canonical(media.path.parent_path() / b.image_dir));
+  }
+}
+
 TEST(Rig, ReadsKalibrStylePinholeEquidistantAsFisheye) {
   const TempDir t;
   const fs::path p = t.Write("kalibr.json", R"({
