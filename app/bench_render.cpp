@@ -251,26 +251,11 @@ std::string LobeName(const material::LobeOptions& l) {
          (l.cosine == material::CosineTerm::kAtLobeAxis ? "axis" : "sg");
 }
 
-int ConeRings(int cones) {
-  switch (cones) {
-    case 1:
-      return 0;
-    case 7:
-      return 1;
-    case 19:
-      return 2;
-    case 37:
-      return 3;
-    default:
-      throw UsageError("--cones", "must be 1, 7, 19 or 37, got " + std::to_string(cones));
-  }
-}
-
 Row RenderRow(const Reference& ref, const std::string& method, int levels, int cones, int voxels, int samples,
               const material::LobeOptions& lobes, int width = 0, int height = 0) {
   render::RenderOptions o;
   o.lighting_levels = levels;
-  o.cone_rings = ConeRings(cones);
+  o.cone_rings = ConeRingsForCount(cones);
   o.voxel_resolution = voxels;
   o.materials = ref.materials;
   o.lobes = lobes;

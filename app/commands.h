@@ -32,6 +32,9 @@ CommandFn AddBenchStitch(CLI::App* sub);
 CommandFn AddBenchReconstruct(CLI::App* sub);
 CommandFn AddBenchPlayer(CLI::App* sub);
 
+// --cones (1, 7, 19 or 37) as the renderer's hexagonal rings (0-3); throws UsageError otherwise.
+int ConeRingsForCount(int cones);
+
 // media/demo/street.mp4 beside the sources or the working directory; throws if absent.
 std::string DefaultDemoVideo();
 

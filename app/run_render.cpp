@@ -73,21 +73,6 @@ std::pair<int, int> ParseSize(const std::string& text) {
   return {w, h};
 }
 
-int ConeRings(int cones) {
-  switch (cones) {
-    case 1:
-      return 0;
-    case 7:
-      return 1;
-    case 19:
-      return 2;
-    case 37:
-      return 3;
-    default:
-      throw UsageError("--cones", "must be 1, 7, 19 or 37 (a centre cone and 0–3 hexagonal rings)");
-  }
-}
-
 void SaveGrey(const std::filesystem::path& path, const std::vector<float>& v, int w, int h) {
   sphere::EquirectImage img(w, h);
   for (std::size_t i = 0; i < v.size(); ++i)
@@ -100,7 +85,7 @@ int RunRender(const RenderCliOptions& o) {
   const auto [width, height] = ParseSize(o.size);
   render::RenderOptions options;
   options.lighting_levels = o.levels;
-  options.cone_rings = ConeRings(o.cones);
+  options.cone_rings = ConeRingsForCount(o.cones);
   options.voxel_resolution = o.voxels;
   options.peak_cones = !o.no_peaks;
   for (const auto& m : o.materials) options.materials.push_back(render::ParseMaterialOverride(m));
@@ -235,6 +220,21 @@ int RunRender(const RenderCliOptions& o) {
 }
 
 }  // namespace
+
+int ConeRingsForCount(int cones) {
+  switch (cones) {
+    case 1:
+      return 0;
+    case 7:
+      return 1;
+    case 19:
+      return 2;
+    case 37:
+      return 3;
+    default:
+      throw UsageError("--cones", "must be 1, 7, 19 or 37 (a centre cone and 0–3 hexagonal rings)");
+  }
+}
 
 CommandFn AddRender(CLI::App* sub) {
   auto o = std::make_shared<RenderCliOptions>();

@@ -165,6 +165,13 @@ BundleAdjustmentReport AdjustBundle(const BundleAdjustmentOptions& options, Bund
     if (!pose.AllFinite()) throw Error("bundle adjustment", "a pose is not finite");
   for (const auto& x : p->points)
     if (!x.allFinite()) throw Error("bundle adjustment", "a point is not finite");
+  // Before anything indexes with them (the initial RMSE included).
+  for (const auto& o : p->observations)
+    if (o.frame < 0 || o.frame >= frames || o.point < 0 || o.point >= points || o.camera < 0 ||
+        o.camera >= p->rig.camera_count())
+      throw Error("bundle adjustment", "observation refers to frame " + std::to_string(o.frame) + ", camera " +
+                                           std::to_string(o.camera) + ", point " + std::to_string(o.point) +
+                                           ", out of range");
 
   std::vector<std::array<double, 6>> pose_blocks(frames);
   for (int f = 0; f < frames; ++f) pose_blocks[f] = PoseBlock(p->world_from_rig[f]);
@@ -180,11 +187,6 @@ BundleAdjustmentReport AdjustBundle(const BundleAdjustmentOptions& options, Bund
   ceres::CauchyLoss loss(options.loss_scale_px);
   std::vector<char> used_pose(frames, 0), used_point(points, 0);
   for (const auto& o : p->observations) {
-    if (o.frame < 0 || o.frame >= frames || o.point < 0 || o.point >= points || o.camera < 0 ||
-        o.camera >= p->rig.camera_count())
-      throw Error("bundle adjustment", "observation refers to frame " + std::to_string(o.frame) + ", camera " +
-                                           std::to_string(o.camera) + ", point " + std::to_string(o.point) +
-                                           ", out of range");
     auto* cost = new ceres::AutoDiffCostFunction<BearingResidual, 2, 6, 3>(
         new BearingResidual(o.bearing, p->rig.rig_from_cam[o.camera].Inverse(), p->rig.focal_px[o.camera]));
     problem.AddResidualBlock(cost, &loss, pose_blocks[o.frame].data(), point_blocks[o.point].data());

@@ -220,6 +220,22 @@ glm::vec3 SampleEquirect(const sphere::EquirectImage& img, const glm::dvec3& d) 
                    fy * ((1 - fx) * at(x0, y0 + 1) + fx * at(x0 + 1, y0 + 1)));
 }
 
+// The uniforms of cone_trace.glsl, which the SG shader and the Monte-Carlo one both include.
+void SetConeTraceUniforms(gl::Program& program, const visibility::VoxelGridSpec& spec, bool has_geometry,
+                          const visibility::ConeTraceOptions& trace) {
+  program
+      .Set("uVoxelOrigin", static_cast<float>(spec.origin.x), static_cast<float>(spec.origin.y),
+           static_cast<float>(spec.origin.z))
+      .Set("uVoxelSize", static_cast<float>(spec.voxel_size))
+      .Set("uVoxelSide", static_cast<float>(spec.side()))
+      .Set("uVoxelTopLevel", has_geometry ? spec.levels() - 1 : -1)
+      .Set("uConeStartOffset", static_cast<float>(trace.start_offset_voxels))
+      .Set("uConeStepScale", static_cast<float>(trace.step_scale))
+      .Set("uConeMaxDistance", static_cast<float>(trace.max_distance))
+      .Set("uConeOpaque", static_cast<float>(trace.opaque_threshold))
+      .Set("uConePartialExponent", static_cast<float>(trace.partial_opacity_exponent));
+}
+
 }  // namespace
 
 // --- camera, overrides, options -----------------------------------------------------------------
@@ -745,17 +761,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uWarpSplit", options_.lobes.warp == material::WarpMode::kAnisotropicSplit ? 1 : 0)
         .Set("uCosineAsSg", options_.lobes.cosine == material::CosineTerm::kAsSg ? 1 : 0)
         .Set("uGroundCenter", static_cast<float>(ground_centre.x), static_cast<float>(ground_centre.y))
-        .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
-        .Set("uVoxelOrigin", static_cast<float>(im.spec.origin.x), static_cast<float>(im.spec.origin.y),
-             static_cast<float>(im.spec.origin.z))
-        .Set("uVoxelSize", static_cast<float>(im.spec.voxel_size))
-        .Set("uVoxelSide", static_cast<float>(im.spec.side()))
-        .Set("uVoxelTopLevel", im.has_geometry ? im.spec.levels() - 1 : -1)
-        .Set("uConeStartOffset", static_cast<float>(options_.trace.start_offset_voxels))
-        .Set("uConeStepScale", static_cast<float>(options_.trace.step_scale))
-        .Set("uConeMaxDistance", static_cast<float>(options_.trace.max_distance))
-        .Set("uConeOpaque", static_cast<float>(options_.trace.opaque_threshold))
-        .Set("uConePartialExponent", static_cast<float>(options_.trace.partial_opacity_exponent));
+        .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size));
+    SetConeTraceUniforms(sp, im.spec, im.has_geometry, options_.trace);
     if (im.has_geometry) glBindTextureUnit(0, im.voxelizer->texture().id());
     im.g_position.BindImage(0, GL_READ_ONLY);
     im.g_normal.BindImage(1, GL_READ_ONLY);
@@ -788,17 +795,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
           .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
           .Set("uSamples", options_.monte_carlo_samples)
           // A ray of a voxel's width: level 0 all along (cone_trace.glsl clamps the diameter).
-          .Set("uShadowRayHalfAngle", 1e-4f)
-          .Set("uVoxelOrigin", static_cast<float>(im.spec.origin.x), static_cast<float>(im.spec.origin.y),
-               static_cast<float>(im.spec.origin.z))
-          .Set("uVoxelSize", static_cast<float>(im.spec.voxel_size))
-          .Set("uVoxelSide", static_cast<float>(im.spec.side()))
-          .Set("uVoxelTopLevel", im.has_geometry ? im.spec.levels() - 1 : -1)
-          .Set("uConeStartOffset", static_cast<float>(options_.trace.start_offset_voxels))
-          .Set("uConeStepScale", static_cast<float>(options_.trace.step_scale))
-          .Set("uConeMaxDistance", static_cast<float>(options_.trace.max_distance))
-          .Set("uConeOpaque", static_cast<float>(options_.trace.opaque_threshold))
-          .Set("uConePartialExponent", static_cast<float>(options_.trace.partial_opacity_exponent));
+          .Set("uShadowRayHalfAngle", 1e-4f);
+      SetConeTraceUniforms(mp, im.spec, im.has_geometry, options_.trace);
       im.mc_environment.BindUnit(1);
       im.env_row_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
       im.env_col_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
