@@ -67,8 +67,12 @@ TEST(RunPlayGL, HeadlessDemoWithTheCarAndAScriptedDrive) {
   fs::remove_all(dir);
 }
 
+// Leak checking is off for the windowed child only: under the sanitizer run, GLX/X11 driver code
+// loaded through GLFW leaves allocations whose stacks LSan cannot name (so no suppression by
+// library matches them); the headless paths, which share all of our code, stay checked.
 std::string Xvfb(const std::string& args) {
-  return "xvfb-run -a -s \"-screen 0 1280x720x24\" " + std::string(ODVR_BINARY) + " " + args;
+  return "ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 xvfb-run -a -s \"-screen 0 1280x720x24\" " +
+         std::string(ODVR_BINARY) + " " + args;
 }
 
 int RunShell(const std::string& cmd, std::string* out) {
