@@ -7,6 +7,7 @@
 #include <opengv/absolute_pose/methods.hpp>
 #include <opengv/relative_pose/NoncentralRelativeAdapter.hpp>
 #include <opengv/relative_pose/methods.hpp>
+#include <optional>
 
 namespace odvr::tracking {
 namespace {
@@ -21,6 +22,28 @@ void CameraArrays(const RigGeometry& rig, opengv::translations_t* offsets, openg
     rotations->push_back(c.rotation);
   }
 }
+
+// What OpenGV's non-central absolute-pose adapter reads: it keeps references, so the arrays
+// live beside it.
+struct AbsolutePoseInput {
+  AbsolutePoseInput(const RigGeometry& rig, const std::vector<RigBearingPoint>& data) {
+    for (const auto& d : data) {
+      bearings.push_back(d.bearing);
+      points.push_back(d.point);
+      cams.push_back(d.camera);
+    }
+    CameraArrays(rig, &offsets, &rotations);
+    adapter.emplace(bearings, cams, points, offsets, rotations);
+  }
+  AbsolutePoseInput(const AbsolutePoseInput&) = delete;  // the adapter points into this object
+  AbsolutePoseInput& operator=(const AbsolutePoseInput&) = delete;
+  opengv::bearingVectors_t bearings;
+  opengv::points_t points;
+  std::vector<int> cams;
+  opengv::translations_t offsets;
+  opengv::rotations_t rotations;
+  std::optional<opengv::absolute_pose::NoncentralAbsoluteAdapter> adapter;  // made once the arrays are full
+};
 
 bool Orthonormal(const Eigen::Matrix3d& r) {
   return r.allFinite() && (r.transpose() * r - Eigen::Matrix3d::Identity()).norm() < 1e-6 && r.determinant() > 0;
@@ -104,18 +127,8 @@ void RigRelativePoseEstimator::Residuals(const std::vector<RigBearingPair>& data
 }
 
 std::vector<Rigid3> RigAbsolutePoseEstimator::Estimate(const std::vector<RigBearingPoint>& data) const {
-  opengv::bearingVectors_t bearings;
-  opengv::points_t points;
-  std::vector<int> cams;
-  for (const auto& d : data) {
-    bearings.push_back(d.bearing);
-    points.push_back(d.point);
-    cams.push_back(d.camera);
-  }
-  opengv::translations_t offsets;
-  opengv::rotations_t rotations;
-  CameraArrays(*rig, &offsets, &rotations);
-  opengv::absolute_pose::NoncentralAbsoluteAdapter adapter(bearings, cams, points, offsets, rotations);
+  AbsolutePoseInput input(*rig, data);
+  auto& adapter = *input.adapter;
   std::vector<Rigid3> out;
   if (data.size() == 3) {
     for (const auto& t : opengv::absolute_pose::gp3p(adapter, 0, 1, 2)) {
@@ -142,18 +155,8 @@ void RigAbsolutePoseEstimator::Residuals(const std::vector<RigBearingPoint>& dat
 }
 
 Rigid3 RefineAbsolutePose(const RigGeometry& rig, const std::vector<RigBearingPoint>& data, const Rigid3& initial) {
-  opengv::bearingVectors_t bearings;
-  opengv::points_t points;
-  std::vector<int> cams;
-  for (const auto& d : data) {
-    bearings.push_back(d.bearing);
-    points.push_back(d.point);
-    cams.push_back(d.camera);
-  }
-  opengv::translations_t offsets;
-  opengv::rotations_t rotations;
-  CameraArrays(rig, &offsets, &rotations);
-  opengv::absolute_pose::NoncentralAbsoluteAdapter adapter(bearings, cams, points, offsets, rotations);
+  AbsolutePoseInput input(rig, data);
+  auto& adapter = *input.adapter;
   adapter.setR(initial.rotation);
   adapter.sett(initial.translation);
   const Rigid3 refined = FromTransformation(opengv::absolute_pose::optimize_nonlinear(adapter));

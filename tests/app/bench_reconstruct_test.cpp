@@ -17,18 +17,12 @@
 namespace {
 
 using odvr::testing::CliRun;
+using odvr::testing::ReadText;
 using odvr::testing::RunOdvr;
 using odvr::testing::ScratchDir;
 
 namespace fs = std::filesystem;
 const fs::path kStreet = fs::path(ODVR_SHARED_DIR) / "data/street_a";
-
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 // Rows of a TSV as column name -> value.
 std::vector<std::map<std::string, std::string>> ReadTsv(const fs::path& path) {

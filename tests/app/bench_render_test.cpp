@@ -14,17 +14,11 @@
 namespace {
 
 using odvr::testing::CliRun;
+using odvr::testing::ReadText;
 using odvr::testing::RunOdvr;
 using odvr::testing::ScratchDir;
 
 namespace fs = std::filesystem;
-
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 const char* kHeader =
     "reference\tmethod\tlobes\twidth\theight\tlevels\tcones\tvoxels\tsamples\tmean_rel\trel_l1\tbias\tssim\t"

@@ -19,18 +19,12 @@ namespace {
 
 using odvr::testing::CliRun;
 using odvr::testing::Lines;
+using odvr::testing::ReadText;
 using odvr::testing::RunOdvr;
 using odvr::testing::ScratchDir;
 
 namespace fs = std::filesystem;
 const fs::path kStreet = fs::path(ODVR_SHARED_DIR) / "data/street_a";
-
-std::string ReadText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 struct TsvRow {
   double ms, psnr_valid, psnr_seams;

@@ -8,6 +8,8 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 namespace odvr::testing {
@@ -34,6 +36,14 @@ inline CliRun RunOdvr(const std::string& args) {
     std::fclose(f);
   }
   return run;
+}
+
+// A whole text file ("" when it cannot be read: the caller's expectations then fail).
+inline std::string ReadText(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
 }
 
 inline int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
