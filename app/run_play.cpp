@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/commands.h"
+#include "app/live_player.h"
 #include "app/player.h"
 #include "engine/core/error.h"
 
@@ -15,6 +16,8 @@ struct PlayCommand {
   CLI::Option* size_option = nullptr;
   bool json = false;
   bool no_car = false;
+  bool live = false;
+  LivePlayOptions live_options;  // its `player` is filled from `options` at run time
 };
 
 void ParseSize(const std::string& text, int* w, int* h) {
@@ -31,6 +34,14 @@ int RunPlay(PlayCommand& c) {
   // 1280x720 car frame takes seconds: unless asked, render the demo's files at a quarter of that.
   if (c.size_option->count() == 0 && (c.options.headless || !DisplayAvailable())) c.size = "640x360";
   ParseSize(c.size, &c.options.width, &c.options.height);
+  if (c.live) {
+    if (!c.options.video.empty()) throw UsageError("--live", "plays the rig's cameras, not a video: drop the video");
+    c.live_options.player = c.options;
+    c.live_options.no_car = c.no_car;
+    return RunLivePlay(c.live_options, c.json);
+  }
+  if (!c.live_options.rig.empty() || !c.live_options.source.empty())
+    throw UsageError(c.live_options.rig.empty() ? "--source" : "--rig", "belongs to live mode: add --live");
   if (c.options.video.empty()) {
     // No video: the demo, with its trajectory and car unless --no-car.
     c.options.video = DefaultDemoVideo();
@@ -122,6 +133,15 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_flag("--no-car", c->no_car, "Play the demo without its car");
   sub->add_option("--resize", o.resize, "Window: resize to WxH halfway through --quit-after (tests)");
   sub->add_flag("--json", c->json, "Print a JSON report");
+  sub->add_flag("--live", c->live, "Live: the rig's cameras stitched and relit every frame (needs --rig)");
+  sub->add_option("--rig", c->live_options.rig, "Live: the rig calibration (config/demo_rig.json, rig.json)");
+  sub->add_option("--source", c->live_options.source,
+                  "Live: the cameras (v4l2:/dev/video0,..., libcamera:, replay:DIR); default: the rig's image_dir "
+                  "folders replayed live");
+  sub->add_option("--stitch-size", c->live_options.stitch_size, "Live: stitched panorama WIDTHxHEIGHT")
+      ->capture_default_str();
+  sub->add_option("--stitch-device", c->live_options.stitch_device, "Live: stitch on cpu or gpu")
+      ->capture_default_str();
   return [c] { return RunPlay(*c); };
 }
 

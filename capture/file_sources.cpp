@@ -265,6 +265,33 @@ std::vector<std::string> Split(const std::string& s, char sep) {
 
 }  // namespace
 
+std::vector<std::string> CameraDirectories(const std::string& dir) {
+  if (!fs::is_directory(dir)) throw Error(dir, "not a directory");
+  std::vector<std::string> dirs;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (!e.is_directory()) continue;
+    bool has_images = false;
+    for (const auto& f : fs::directory_iterator(e.path())) {
+      if (f.is_regular_file() && IsImageFile(f.path())) {
+        has_images = true;
+        break;
+      }
+    }
+    if (has_images) dirs.push_back(e.path().string());
+  }
+  std::sort(dirs.begin(), dirs.end());
+  if (dirs.empty()) dirs.push_back(dir);
+  return dirs;
+}
+
+std::vector<std::filesystem::path> ImageFiles(const std::string& dir) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.is_regular_file() && IsImageFile(e.path())) files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
 std::unique_ptr<Source> OpenImageSequences(const std::vector<std::string>& camera_dirs, const SourceOptions& options) {
   return std::make_unique<ImageSequenceSource>(camera_dirs, options);
 }
@@ -276,26 +303,15 @@ std::unique_ptr<Source> OpenVideoFiles(const std::vector<std::string>& paths, co
 std::unique_ptr<Source> OpenSource(const std::string& spec, const SourceOptions& options) {
   if (spec.rfind("v4l2:", 0) == 0) return OpenV4l2(Split(spec.substr(5), ','), options);
   if (spec.rfind("libcamera:", 0) == 0) return OpenLibcamera(Split(spec.substr(10), ','), options);
+  if (spec.rfind("replay:", 0) == 0) {
+    // One folder holding the camera folders, or the camera folders themselves.
+    auto dirs = Split(spec.substr(7), ',');
+    if (dirs.size() == 1) dirs = CameraDirectories(dirs[0]);
+    return OpenReplay(dirs, options);
+  }
   if (spec.empty()) throw Error("source", "empty source name");
   const fs::path path(spec);
-  if (fs::is_directory(path)) {
-    // Camera subdirectories (cam0, cam1, ... or any that hold images), else the directory itself.
-    std::vector<std::string> dirs;
-    for (const auto& e : fs::directory_iterator(path)) {
-      if (!e.is_directory()) continue;
-      bool has_images = false;
-      for (const auto& f : fs::directory_iterator(e.path())) {
-        if (f.is_regular_file() && IsImageFile(f.path())) {
-          has_images = true;
-          break;
-        }
-      }
-      if (has_images) dirs.push_back(e.path().string());
-    }
-    std::sort(dirs.begin(), dirs.end());
-    if (dirs.empty()) dirs.push_back(spec);
-    return OpenImageSequences(dirs, options);
-  }
+  if (fs::is_directory(path)) return OpenImageSequences(CameraDirectories(spec), options);
   const auto parts = Split(spec, ',');
   for (const auto& p : parts)
     if (!fs::exists(p)) throw Error(p, "no such file or directory");

@@ -4,6 +4,7 @@
 // went wrong as events the caller can survive (a camera lost, a corrupt frame) and fails with
 // an odvr::Error only when it cannot start at all.
 #include <chrono>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -53,9 +54,22 @@ std::unique_ptr<Source> OpenV4l2(const std::vector<std::string>& devices, const 
 // Live libcamera cameras by id (empty: every camera libcamera lists).
 std::unique_ptr<Source> OpenLibcamera(const std::vector<std::string>& camera_ids, const SourceOptions& options);
 
+// Recorded per-camera image sequences replayed as if live: one capture thread per camera
+// delivers its images paced at options.fps on the steady clock, looping the recording. A camera
+// whose sequence is shorter than the others', or whose image cannot be read, is lost mid-stream
+// (as an unplugged device is) and stays lost; the others go on. Rehearses a rig without it.
+std::unique_ptr<Source> OpenReplay(const std::vector<std::string>& camera_dirs, const SourceOptions& options);
+
+// The camera folders of a recording: `dir`'s subfolders that hold images, sorted (cam0, cam1,
+// ...), else `dir` itself. Throws odvr::Error when `dir` is not a directory.
+std::vector<std::string> CameraDirectories(const std::string& dir);
+// The image files (.jpg, .png, .exr, ...) directly in `dir`, sorted by name.
+std::vector<std::filesystem::path> ImageFiles(const std::string& dir);
+
 // Opens what `spec` names: a directory (its camera subdirectories cam0.., or the directory itself
 // if it holds images), a video file, comma-separated video files, "v4l2:/dev/video0,/dev/video1"
-// or "libcamera:[id,id]". Throws odvr::Error naming `spec` when it is none of these.
+// "libcamera:[id,id]" or "replay:DIR" (DIR's camera folders, or comma-separated camera folders,
+// replayed live: OpenReplay). Throws odvr::Error naming `spec` when it is none of these.
 std::unique_ptr<Source> OpenSource(const std::string& spec, const SourceOptions& options = {});
 
 }  // namespace odvr::capture

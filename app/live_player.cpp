@@ -1,0 +1,336 @@
+// The live player's loops (app/live_player.h): headless to PNG frames, or a window driven by
+// WASD/arrows with the lost-camera messages in its overlay.
+#define GLFW_INCLUDE_NONE
+#include "app/live_player.h"
+
+#include <GLFW/glfw3.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+#include <imgui.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "app/bench_common.h"
+#include "app/commands.h"
+#include "engine/core/atomic_file.h"
+#include "engine/core/error.h"
+#include "engine/gl/context.h"
+#include "engine/gl/objects.h"
+#include "engine/image/image_io.h"
+
+namespace odvr::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::pair<int, int> ParseSize(const std::string& text, const std::string& option) {
+  int a = 0, b = 0;
+  char x = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X') || a < 1 || b < 1)
+    throw UsageError(option, "expects WIDTHxHEIGHT (at least 1x1), got '" + text + "'");
+  return {a, b};
+}
+
+LiveSceneOptions SceneOptions(const LivePlayOptions& o) {
+  const PlayerOptions& p = o.player;
+  LiveSceneOptions s;
+  s.rig = o.rig;
+  s.source = o.source;
+  s.car = o.no_car ? "" : p.car;
+  if (p.car_start_m >= 0) s.car_ahead_m = p.car_start_m;
+  std::tie(s.stitch_width, s.stitch_height) = ParseSize(o.stitch_size, "--stitch-size");
+  if (o.stitch_device != "cpu" && o.stitch_device != "gpu")
+    throw UsageError("--stitch-device", "expects cpu or gpu, got '" + o.stitch_device + "'");
+  s.stitch_device = o.stitch_device == "gpu" ? capture::StitchDevice::kGpu : capture::StitchDevice::kCpu;
+  s.lighting_levels = p.lighting_levels;
+  s.voxel_resolution = p.voxels;
+  s.vfov_deg = std::clamp(p.view.fov_deg, 30.0, 150.0);
+  s.exposure = p.exposure;
+  return s;
+}
+
+LiveFrameRecord Record(const LiveFrame& f) {
+  LiveFrameRecord r;
+  r.set_index = f.set_index;
+  r.source_frame = f.source_frame;
+  r.cameras_present = f.cameras_present;
+  r.new_set = f.new_set;
+  r.car_px = f.car_in_front ? f.car_pixel.x : -1;
+  r.car_py = f.car_in_front ? f.car_pixel.y : -1;
+  r.car_pixels = f.car_pixels;
+  return r;
+}
+
+LiveTimings Medians(const std::vector<LiveTimings>& all) {
+  auto median = [&](double LiveTimings::*field) {
+    std::vector<double> v;
+    for (const auto& t : all) v.push_back(t.*field);
+    return Median(v);
+  };
+  LiveTimings m;
+  for (auto field : {&LiveTimings::capture_wait, &LiveTimings::stitch, &LiveTimings::lighting, &LiveTimings::render,
+                     &LiveTimings::composite, &LiveTimings::total})
+    m.*field = median(field);
+  return m;
+}
+
+// 8-bit sRGB RGB rows of a linear image (what the window shows).
+std::vector<std::uint8_t> ToSrgb8(const sphere::EquirectImage& image) {
+  static const std::vector<std::uint8_t> lut = [] {
+    std::vector<std::uint8_t> l(4096);
+    for (int i = 0; i < 4096; ++i)
+      l[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(std::lround(255 * image::LinearToSrgb(i / 4095.f)));
+    return l;
+  }();
+  std::vector<std::uint8_t> out(image.rgb.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const float v = std::clamp(image.rgb[i], 0.f, 1.f);
+    out[i] = lut[static_cast<std::size_t>(v * 4095 + 0.5f)];
+  }
+  return out;
+}
+
+void Finish(const LiveScene& scene, const std::vector<LiveTimings>& all, LiveReport* report) {
+  report->median = Medians(all);
+  if (!all.empty()) report->last = all.back();
+  report->lost_cameras = scene.lost_cameras();
+  report->source_stats = scene.source_stats();
+  report->source = scene.source_description();
+}
+
+LiveReport RunLiveHeadless(const LivePlayOptions& o) {
+  const PlayerOptions& p = o.player;
+  gl::HeadlessContext context;
+  LiveScene scene(SceneOptions(o));
+  const auto script = p.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(p.drive);
+  const double dt = 1.0 / 25;  // the script advances one rig frame per shown frame
+  const int frames = p.headless_frames > 0 ? p.headless_frames : LivePlayOptions::kDefaultHeadlessFrames;
+  LiveReport report;
+  report.mode = "headless";
+  report.output_dir = p.out_dir;
+  std::filesystem::create_directories(p.out_dir);
+  std::vector<LiveTimings> all;
+  const AugmentedView view{p.view.yaw_deg, p.view.pitch_deg, 0, true};
+  for (int i = 0; i < frames; ++i) {
+    if (i > 0) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
+    const LiveFrame f = scene.Render(p.width, p.height, view);
+    // Nobody watches a headless run: say each event once, where a user running it would look.
+    for (auto& m : scene.TakeMessages()) {
+      std::cerr << "odvr play --live: " << m << "\n";
+      report.messages.push_back(std::move(m));
+    }
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%06d.png", i);
+    const auto path = std::filesystem::path(p.out_dir) / name;
+    image::SaveImage(path, f.image);
+    all.push_back(f.ms);
+    report.frames.push_back(Record(f));
+    report.frames.back().file = path.string();
+    ++report.frames_shown;
+  }
+  Finish(scene, all, &report);
+  return report;
+}
+
+LiveReport RunLiveWindow(const LivePlayOptions& o) {
+  const PlayerOptions& p = o.player;
+  gl::WindowContext window(p.width, p.height, "odvr live — " + o.rig);
+  GLFWwindow* w = window.window();
+  LiveScene scene(SceneOptions(o));
+  const auto script = p.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(p.drive);
+  glfwSwapInterval(0);  // the cameras pace the loop
+
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;
+  ImGui_ImplGlfw_InitForOpenGL(w, true);
+  ImGui_ImplOpenGL3_Init("#version 450");
+  double scroll = 0;
+  glfwSetWindowUserPointer(w, &scroll);
+  glfwSetScrollCallback(w, [](GLFWwindow* win, double dx, double dy) {
+    ImGui_ImplGlfw_ScrollCallback(win, dx, dy);
+    if (!ImGui::GetIO().WantCaptureMouse) *static_cast<double*>(glfwGetWindowUserPointer(win)) += dy;
+  });
+  glfwSetKeyCallback(w, [](GLFWwindow* win, int key, int scancode, int action, int mods) {
+    ImGui_ImplGlfw_KeyCallback(win, key, scancode, action, mods);
+    if (action == GLFW_PRESS && (key == GLFW_KEY_ESCAPE || key == GLFW_KEY_Q)) glfwSetWindowShouldClose(win, GLFW_TRUE);
+  });
+
+  LiveReport report;
+  report.mode = "window";
+  std::vector<LiveTimings> all;
+  AugmentedView view{p.view.yaw_deg, p.view.pitch_deg, std::clamp(p.view.fov_deg, 30.0, 150.0), true};
+  gl::Texture shown{gl::NoCreate};
+  gl::Framebuffer read_fbo;
+  int shown_w = 0, shown_h = 0;
+  double last_x = 0, last_y = 0;
+  bool dragging = false;
+  const auto start = Clock::now();
+  auto previous = start;
+  LiveFrame frame;
+  while (!glfwWindowShouldClose(w)) {
+    glfwPollEvents();
+    const auto now = Clock::now();
+    const double dt = std::chrono::duration<double>(now - previous).count();
+    const double t = std::chrono::duration<double>(now - start).count();
+    previous = now;
+    const bool keys_free = !ImGui::GetIO().WantCaptureKeyboard;
+    auto held = [&](int a, int b) {
+      return keys_free && (glfwGetKey(w, a) == GLFW_PRESS || glfwGetKey(w, b) == GLFW_PRESS);
+    };
+    CarInput input = DriveInputAt(script, t);
+    input.forward |= held(GLFW_KEY_W, GLFW_KEY_UP);
+    input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
+    input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
+    input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
+    scene.Drive(input, dt);
+
+    int fb_w = 0, fb_h = 0;
+    glfwGetFramebufferSize(w, &fb_w, &fb_h);
+    double x, y;
+    glfwGetCursorPos(w, &x, &y);
+    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS && (dragging || !ImGui::GetIO().WantCaptureMouse)) {
+      if (dragging && fb_h > 0) {  // a drag across the window's height turns by the field of view
+        view.yaw_deg -= (x - last_x) * view.vfov_deg / fb_h;
+        view.pitch_deg = std::clamp(view.pitch_deg + (y - last_y) * view.vfov_deg / fb_h, -90.0, 90.0);
+      }
+      dragging = true;
+    } else {
+      dragging = false;
+    }
+    last_x = x;
+    last_y = y;
+    view.vfov_deg = std::clamp(view.vfov_deg * std::pow(0.95, std::exchange(scroll, 0.0)), 30.0, 150.0);
+
+    if (fb_w > 0 && fb_h > 0) {
+      const int rw = std::max(fb_w, 16), rh = std::max(fb_h, 16);
+      frame = scene.Render(rw, rh, view);
+      for (auto& m : scene.TakeMessages()) report.messages.push_back(std::move(m));
+      all.push_back(frame.ms);
+      report.frames.push_back(Record(frame));
+      const auto srgb = ToSrgb8(frame.image);
+      if (shown_w != rw || shown_h != rh) {
+        shown = gl::Texture::Create2D(GL_RGBA8, rw, rh);
+        read_fbo.AttachColor(shown);
+        shown_w = rw;
+        shown_h = rh;
+      }
+      glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+      shown.Upload2D(GL_RGB, GL_UNSIGNED_BYTE, srgb.data());
+      glBindFramebuffer(GL_FRAMEBUFFER, 0);
+      glViewport(0, 0, fb_w, fb_h);
+      // Rows were uploaded top first; the window's y grows upward: flip in the blit.
+      glBlitNamedFramebuffer(read_fbo.id(), 0, 0, 0, rw, rh, 0, fb_h, fb_w, 0, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+
+      ImGui_ImplOpenGL3_NewFrame();
+      ImGui_ImplGlfw_NewFrame();
+      ImGui::NewFrame();
+      ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
+      ImGui::SetNextWindowBgAlpha(0.6f);
+      ImGui::Begin("odvr live", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+      ImGui::Text("set %ld  cameras %d / %d   car %.1f km/h", frame.set_index, frame.cameras_present,
+                  scene.rig().camera_count(), scene.car().state().speed_mps * 3.6);
+      ImGui::Text("wait %.1f  stitch %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.capture_wait,
+                  frame.ms.stitch, frame.ms.lighting, frame.ms.render, frame.ms.composite);
+      ImGui::Text("total %.1f ms  (%.1f fps)", frame.ms.total, frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0);
+      // Lost cameras stay listed for as long as they are gone; the latest event under them.
+      for (const auto& cam : scene.lost_cameras())
+        ImGui::TextColored(ImVec4(1, 0.4f, 0.2f, 1), "camera %s lost: playing on without it", cam.c_str());
+      if (!report.messages.empty()) ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", report.messages.back().c_str());
+      ImGui::Text("WASD/arrows drive, drag looks, scroll zooms, Esc quits");
+      ImGui::End();
+      ImGui::Render();
+      ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+    }
+    ++report.frames_shown;
+    const bool quitting = p.quit_after_s > 0 && t > p.quit_after_s;
+    if (quitting && !p.screenshot.empty() && fb_w > 0 && fb_h > 0) {
+      std::vector<unsigned char> rgba(static_cast<std::size_t>(fb_w) * fb_h * 4);
+      glPixelStorei(GL_PACK_ALIGNMENT, 1);
+      glReadPixels(0, 0, fb_w, fb_h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+      cv::Mat image(fb_h, fb_w, CV_8UC4, rgba.data()), bgr;
+      cv::cvtColor(image, bgr, cv::COLOR_RGBA2BGR);
+      cv::flip(bgr, bgr, 0);
+      WriteFileAtomically(p.screenshot, [&](const std::filesystem::path& tmp) {
+        if (!cv::imwrite(tmp.string(), bgr)) throw Error(p.screenshot, "cannot write PNG");
+      });
+    }
+    glfwSwapBuffers(w);
+    if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
+  }
+  ImGui_ImplOpenGL3_Shutdown();
+  ImGui_ImplGlfw_Shutdown();
+  ImGui::DestroyContext();
+  Finish(scene, all, &report);
+  return report;
+}
+
+nlohmann::json TimingsJson(const LiveTimings& t) {
+  return {{"capture_wait", t.capture_wait}, {"stitch", t.stitch}, {"lighting", t.lighting}, {"render", t.render},
+          {"composite", t.composite},       {"total", t.total}};
+}
+
+}  // namespace
+
+LiveReport RunLivePlayer(const LivePlayOptions& options) {
+  const PlayerOptions& p = options.player;
+  if (p.width < 1 || p.height < 1 || p.width > 16384 || p.height > 16384)
+    throw UsageError("--size", "must be between 1x1 and 16384x16384");
+  if (p.headless_frames < 0) throw UsageError("--frames", "must be non-negative");
+  return p.headless || !DisplayAvailable() ? RunLiveHeadless(options) : RunLiveWindow(options);
+}
+
+int RunLivePlay(LivePlayOptions o, bool json) {
+  if (!o.no_car && o.player.car.empty()) {
+    // The demo's car, as `odvr play` without arguments shows it.
+    o.player.car = (std::filesystem::path(DefaultDemoVideo()).parent_path() / "car.glb").string();
+  }
+  const LiveReport r = RunLivePlayer(o);
+  if (json) {
+    nlohmann::json frames = nlohmann::json::array();
+    for (const auto& f : r.frames)
+      frames.push_back({{"set_index", f.set_index},
+                        {"source_frame", f.source_frame},
+                        {"cameras_present", f.cameras_present},
+                        {"new_set", f.new_set},
+                        {"car_pixel", {f.car_px, f.car_py}},
+                        {"car_pixels", f.car_pixels},
+                        {"file", f.file}});
+    const auto& s = r.source_stats;
+    nlohmann::json j{{"mode", r.mode},
+                     {"live", true},
+                     {"augmented", !o.no_car},
+                     {"source", r.source},
+                     {"size", {o.player.width, o.player.height}},
+                     {"frames_shown", r.frames_shown},
+                     {"output_dir", r.output_dir},
+                     {"median_total_ms", r.median.total},
+                     {"median_ms", TimingsJson(r.median)},
+                     {"last_frame_ms", TimingsJson(r.last)},
+                     {"messages", r.messages},
+                     {"lost_cameras", r.lost_cameras},
+                     {"source_stats",
+                      {{"sets_delivered", s.sets_delivered},
+                       {"frames_dropped", s.frames_dropped},
+                       {"frames_out_of_sync", s.frames_out_of_sync},
+                       {"corrupt_frames", s.corrupt_frames},
+                       {"missing_frames", s.missing_frames}}},
+                     {"frames", frames}};
+    std::cout << j.dump(2) << "\n";
+  } else if (r.mode == "headless") {
+    std::cout << "no display: rendered " << r.frames_shown << " live frames from " << r.source << " to "
+              << std::filesystem::absolute(r.output_dir).string() << " (median " << r.median.total
+              << " ms per frame)\n";
+  }
+  return 0;
+}
+
+}  // namespace odvr::app
