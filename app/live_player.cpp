@@ -66,6 +66,8 @@ LiveFrameRecord Record(const LiveFrame& f) {
   r.car_px = f.car_in_front ? f.car_pixel.x : -1;
   r.car_py = f.car_in_front ? f.car_pixel.y : -1;
   r.car_pixels = f.car_pixels;
+  r.sets_skipped = f.sets_skipped;
+  r.ms = f.ms;
   return r;
 }
 

@@ -27,6 +27,8 @@ struct LiveFrameRecord {
   bool new_set = false;
   double car_px = -1, car_py = -1;
   int car_pixels = 0;
+  long sets_skipped = 0;  // older sets passed over to show the newest
+  LiveTimings ms;
   std::string file;  // headless PNG
 };
 
