@@ -131,7 +131,10 @@ std::vector<std::string> LiveScene::TakeMessages() {
     const std::string cam = named ? im.rig.cameras[static_cast<std::size_t>(e.camera)].name : "a camera";
     if (e.kind == capture::SourceEvent::Kind::kCameraLost) {
       if (named) lost_.push_back(cam);
-      im.messages.push_back("camera " + cam + " lost: " + e.message + "; playing on with the others");
+      const int left = im.rig.camera_count() - static_cast<int>(lost_.size());
+      im.messages.push_back("camera " + cam + " lost: " + e.message +
+                            (left > 0 ? "; playing on with the other " + std::to_string(left)
+                                      : "; no camera left: showing the last picture"));
     } else if (e.kind == capture::SourceEvent::Kind::kCorruptFrame) {
       im.messages.push_back("camera " + cam + ": " + e.message);
     }
@@ -176,7 +179,7 @@ LiveFrame LiveScene::Render(int width, int height, const AugmentedView& view) {
     im.stitcher->Stitch(images, &im.stitched);
     im.set_index = set->index;
     const sphere::EquirectImage& pano = im.stitched.image;
-    const cv::Mat lin(pano.height, pano.width, CV_32FC3, const_cast<float*>(pano.rgb.data()));
+    const cv::Mat lin(pano.height, pano.width, CV_32FC3, im.stitched.image.rgb.data());
     cv::Mat wrapped;
     cv::copyMakeBorder(lin, wrapped, 0, 0, 1, 1, cv::BORDER_WRAP);
     cv::copyMakeBorder(wrapped, im.padded, 1, 1, 0, 0, cv::BORDER_REPLICATE);

@@ -36,6 +36,8 @@ int RunPlay(PlayCommand& c) {
   ParseSize(c.size, &c.options.width, &c.options.height);
   if (c.live) {
     if (!c.options.video.empty()) throw UsageError("--live", "plays the rig's cameras, not a video: drop the video");
+    if (!c.options.trajectory.empty())
+      throw UsageError("--trajectory", "has no place in live mode: the rig stands still, the car --car-start m ahead");
     c.live_options.player = c.options;
     c.live_options.no_car = c.no_car;
     return RunLivePlay(c.live_options, c.json);
