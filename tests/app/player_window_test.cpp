@@ -225,5 +225,77 @@ TEST(PlayerWindowGL, DragWheelAndKeysTurnZoomAndStepTheView) {
               box.height, box.x, box.y, timings.c_str());
 }
 
+// Where the car is in a screenshot: the pixels that change when it is hidden (C), car and shadow.
+struct CarInShot {
+  int pixels = 0;
+  cv::Rect box;
+  cv::Point2d centroid;
+  bool at_projection = false;  // the projected centre is one of them
+};
+CarInShot FindCar(const json& shown, const json& hidden) {
+  const cv::Mat changed = Changed(Shot(shown), Shot(hidden));
+  CarInShot c;
+  c.pixels = cv::countNonZero(changed);
+  c.box = cv::boundingRect(changed);
+  const cv::Moments m = cv::moments(changed, true);
+  if (m.m00 > 0) c.centroid = {m.m10 / m.m00, m.m01 / m.m00};
+  const int px = static_cast<int>(shown["car_pixel"][0].get<double>());
+  const int py = static_cast<int>(shown["car_pixel"][1].get<double>());
+  c.at_projection = cv::Rect(0, 0, changed.cols, changed.rows).contains({px, py}) && changed.at<uchar>(py, px) != 0;
+  return c;
+}
+
+// The demo with its car: the car is drawn where the player says it projects, W drives it down
+// the street (the view following), and the overlay shows the augmented stages' timings.
+TEST(PlayerWindowGL, CarAppearsAtItsProjectionAndDrivesWithW) {
+  if (const std::string tool = MissingTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
+  ScratchDir scratch("odvr_player_window_car");
+  // Looking 15° right of the car, so that it stands left of the middle.
+  ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15");
+  window.Shot("mousemove --window $W 470 260 key F1");  // 1: overlay off, the car at rest
+  window.Shot("key space c");                           // 2: paused, the car hidden
+  window.Shot("key c space keydown w");                 // 3: driving
+  window.Shot("sleep 1 keyup w key space");             // 4: a second of W later, paused
+  window.Shot("key c");                                 // 5: the car hidden
+  window.Shot("key c F1");                              // 6: the overlay back
+  const auto t = window.Run();
+  ASSERT_EQ(t.size(), 7u) << window.log();
+  EXPECT_NE(window.log().find("player exit 0"), std::string::npos) << window.log();
+
+  EXPECT_EQ(t[1]["car_speed_mps"].get<double>(), 0.0);
+  EXPECT_GT(t[3]["car_speed_mps"].get<double>(), 0.0);
+  const double moved = std::hypot(t[4]["car_world_xz"][0].get<double>() - t[1]["car_world_xz"][0].get<double>(),
+                                  t[4]["car_world_xz"][1].get<double>() - t[1]["car_world_xz"][1].get<double>());
+  // W is held from shot 3's request to a second after it: at least 1.75 m from rest at 3.5 m/s².
+  EXPECT_GT(moved, 1.7);
+  EXPECT_NE(t[4]["view_frame"].get<int>(), t[1]["view_frame"].get<int>()) << "the viewer follows the car";
+  EXPECT_EQ(t[4]["car_world_xz"], t[5]["car_world_xz"]) << "paused";
+
+  for (const auto& [shown, hidden] : {std::pair{1, 2}, std::pair{4, 5}}) {
+    const CarInShot car = FindCar(t[shown], t[hidden]);
+    const double px = t[shown]["car_pixel"][0].get<double>(), py = t[shown]["car_pixel"][1].get<double>();
+    EXPECT_LT(px, 240) << "15° right of the car puts it left of the middle";
+    EXPECT_TRUE(car.at_projection) << "shot " << shown;
+    EXPECT_TRUE(car.box.contains(cv::Point(static_cast<int>(px), static_cast<int>(py)))) << "shot " << shown;
+    // The shadow, cast toward the viewer's feet, pulls the centroid down but hardly sideways.
+    EXPECT_NEAR(car.centroid.x, px, 0.2 * car.box.width) << "shot " << shown;
+    EXPECT_GT(car.pixels, 0.8 * t[shown]["car_pixels"].get<int>()) << "shot " << shown;
+    std::printf("shot %d: car projected at (%.1f, %.1f), drawn: %d px in %dx%d at (%d,%d), centroid (%.1f, %.1f)\n",
+                shown, px, py, car.pixels, car.box.width, car.box.height, car.box.x, car.box.y, car.centroid.x,
+                car.centroid.y);
+  }
+  std::printf("W for 1 s: car moved %.2f m, view frame %d -> %d\n", moved, t[1]["view_frame"].get<int>(),
+              t[4]["view_frame"].get<int>());
+
+  const auto& overlay = t[6]["overlay"];
+  ASSERT_GE(overlay.size(), 2u);
+  const std::string timings = overlay[1].get<std::string>();
+  for (const char* stage : {"lighting", "render", "composite"})
+    EXPECT_NEAR(Number(timings, std::string(stage) + " "), t[6]["ms"][stage].get<double>(), 0.06) << timings;
+  EXPECT_GT(t[6]["ms"]["render"].get<double>(), 0);
+  EXPECT_GT(cv::countNonZero(Changed(Shot(t[5]), Shot(t[6]))(cv::Rect(0, 0, 200, 60))), 500) << "overlay drawn";
+  std::printf("overlay: \"%s\"\n", timings.c_str());
+}
+
 }  // namespace
 }  // namespace odvr::app
