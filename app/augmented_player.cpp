@@ -17,6 +17,7 @@
 
 #include "app/augmented_scene.h"
 #include "app/bench_common.h"
+#include "app/car_look.h"
 #include "app/player.h"
 #include "app/view_controller.h"
 #include "app/window_input.h"
@@ -104,6 +105,51 @@ std::pair<int, int> ParseResize(const std::string& text) {
   if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X') || a < 1 || b < 1)
     throw UsageError("--resize", "expects WIDTHxHEIGHT (at least 1x1), got '" + text + "'");
   return {a, b};
+}
+
+// The car's panel, a second ImGui window at the top right, collapsed at first (the picture stays
+// clear): edits `look` and shows the light frame's figures. True when a control changed.
+bool CarPanel(int window_width, int levels, const AugmentedFrame& frame, CarLook* look) {
+  ImGui::SetNextWindowPos(ImVec2(static_cast<float>(window_width) - 10, 10), ImGuiCond_FirstUseEver, ImVec2(1, 0));
+  ImGui::SetNextWindowCollapsed(true, ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowBgAlpha(0.7f);
+  const CarLook before = *look;
+  if (ImGui::Begin("car", nullptr, ImGuiWindowFlags_AlwaysAutoResize)) {
+    int model = static_cast<int>(look->model);
+    ImGui::Combo("material", &model, "glTF (as modelled)\0Phong\0Cook-Torrance\0");
+    look->model = static_cast<CarLook::Model>(model);
+    auto slider = [](const char* label, double* v, float lo, float hi, const char* format, bool log = false) {
+      float f = static_cast<float>(*v);
+      if (ImGui::SliderFloat(label, &f, lo, hi, format, log ? ImGuiSliderFlags_Logarithmic : 0)) *v = f;
+    };
+    if (look->model != CarLook::Model::kGltf) {
+      ImGui::ColorEdit3("colour", look->colour.data());
+      slider("kd/ks mix (ks)", &look->ks, 0, 1, "%.2f");
+      if (look->model == CarLook::Model::kPhong) slider("Phong n", &look->phong_n, 1, 5000, "%.0f", true);
+      if (look->model == CarLook::Model::kCookTorrance) {
+        slider("roughness", &look->roughness, 0.01f, 1, "%.2f");
+        slider("Fresnel F0", &look->fresnel_f0, 0, 1, "%.2f");
+      }
+    }
+    ImGui::Checkbox("peaks", &look->peaks);
+    ImGui::SameLine();
+    ImGui::Checkbox("peak cones", &look->cones);
+    for (int l = 0; l < std::min(levels, static_cast<int>(look->levels.size())); ++l) {
+      if (l > 0) ImGui::SameLine();
+      bool on = look->levels[static_cast<std::size_t>(l)];
+      if (ImGui::Checkbox(("L" + std::to_string(l)).c_str(), &on)) look->levels[static_cast<std::size_t>(l)] = on;
+    }
+    ImGui::Text("decode %.1f  light %.1f  render %.1f  composite %.1f ms", frame.ms.decode, frame.ms.lighting,
+                frame.ms.render, frame.ms.composite);
+    // The light frame's model: what each level kept and the residue (mean |residual| over mean
+    // radiance) it left, after the peaks were taken out.
+    ImGui::Text("light frame %d: %d peaks", frame.light_frame, frame.light_peaks);
+    for (const auto& l : frame.light_levels)
+      ImGui::Text("L%d  %4d/%4d SRBFs  residue %.3f -> %.3f", l.level, l.srbfs_kept, l.srbfs_total, l.residue_before,
+                  l.residue_after);
+  }
+  ImGui::End();
+  return !(*look == before);
 }
 
 }  // namespace
@@ -228,14 +274,14 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
       // Rows were uploaded top first; the window's y grows upward: flip in the blit.
       glBlitNamedFramebuffer(read_fbo.id(), 0, 0, 0, rw, rh, 0, fb_h, fb_w, 0, GL_COLOR_BUFFER_BIT, GL_LINEAR);
 
-      overlay = {
-          Printf("frame %d (light %d)   car %.1f km/h%s", frame.view_frame, frame.light_frame,
-                 scene.car().state().speed_mps * 3.6, paused ? "  (paused)" : ""),
-          Printf("decode %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.decode, frame.ms.lighting,
-                 frame.ms.render, frame.ms.composite),
-          Printf("total %.1f ms  (%.1f fps)", frame.ms.total, frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0),
-          Printf("yaw %.1f  pitch %.1f  fov %.1f", look.state().yaw_deg, look.state().pitch_deg, look.state().fov_deg),
-          "WASD/arrows drive, drag looks, scroll zooms, space pauses, C car, F12 screenshot, Esc quits"};
+      overlay = {Printf("frame %d (light %d)   car %.1f km/h%s", frame.view_frame, frame.light_frame,
+                        scene.car().state().speed_mps * 3.6, paused ? "  (paused)" : ""),
+                 Printf("decode %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.decode,
+                        frame.ms.lighting, frame.ms.render, frame.ms.composite),
+                 Printf("total %.1f ms (%.1f fps)  yaw %.0f pitch %.0f fov %.0f", frame.ms.total,
+                        frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0, look.state().yaw_deg, look.state().pitch_deg,
+                        look.state().fov_deg),
+                 "WASD drive, drag look, wheel zoom, space pause, C car, F1 panel, F12 shot"};
       ImGui_ImplOpenGL3_NewFrame();
       ImGui_ImplGlfw_NewFrame();
       ImGui::NewFrame();
@@ -245,6 +291,8 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
         ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
         for (const auto& line : overlay) ImGui::TextUnformatted(line.c_str());
         ImGui::End();
+        CarLook car_look = scene.look();
+        if (CarPanel(fb_w, o.lighting_levels, frame, &car_look)) scene.SetLook(car_look);
       }
       ImGui::Render();
       ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());

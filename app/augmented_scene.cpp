@@ -134,6 +134,7 @@ struct AugmentedScene::Impl {
   std::map<int, Cached> panos;
   long use_clock = 0;
   std::map<int, lighting::SgLighting> lights;
+  std::map<int, lighting::LightingReport> light_reports;
   std::unique_ptr<lighting::LightingBuilder> builder;
 
   scene::GltfScene model;
@@ -251,6 +252,17 @@ void AugmentedScene::PlaceCar(double s_m, double lateral_m) {
   car_->Reset(pos + lateral_m * left, dir);
 }
 
+void AugmentedScene::SetLook(const CarLook& look) {
+  if (look == look_) return;
+  if (look.model != look_.model || look.colour != look_.colour || look.ks != look_.ks ||
+      look.phong_n != look_.phong_n || look.roughness != look_.roughness || look.fresnel_f0 != look_.fresnel_f0)
+    impl_->renderer->SetMaterials(MaterialOverrides(look));
+  else
+    look.Check();
+  impl_->renderer->SetPeakCones(look.cones);
+  look_ = look;
+}
+
 void AugmentedScene::TeleportCar(const glm::dvec3& world_position) {
   car_->Reset(world_position, car_->state().forward);
 }
@@ -284,7 +296,11 @@ const lighting::SgLighting& AugmentedScene::FrameLighting(int frame) {
   }
   sphere::EquirectImage e(lin.cols, lin.rows);
   std::memcpy(e.rgb.data(), lin.ptr<float>(), e.rgb.size() * sizeof(float));
-  return im.lights.emplace(frame, im.builder->Build(e)).first->second;
+  lighting::LightingReport report;
+  lighting::SgLighting light = im.builder->Build(e, &report);
+  report.peak_detection.residue = {};  // a frame-sized image; only the peaks' count is shown
+  im.light_reports[frame] = std::move(report);
+  return im.lights.emplace(frame, std::move(light)).first->second;
 }
 
 AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView& view, double dt_s) {
@@ -383,12 +399,16 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
   }
   for (std::size_t i = 0; i < turned.size(); ++i)
     blend.emplace_back(&turned[i], std::next(weights.begin(), static_cast<std::ptrdiff_t>(i))->second);
-  const lighting::SgLighting light = lighting::SgLighting::Blend(blend);
+  const lighting::SgLighting light = ApplyLightToggles(lighting::SgLighting::Blend(blend), look_);
   const glm::dmat4 world_from_car = car_->WorldFromCar();
   const glm::dmat3 car_from_world = glm::transpose(glm::dmat3(world_from_car));
   im.renderer->SetLighting(light, car_from_world * im.world_from_pano[static_cast<std::size_t>(ref_k)]);
   out.ms.lighting = MsSince(t0);
   out.light_frame = frame_index_[static_cast<std::size_t>(light_k)];
+  if (auto r = im.light_reports.find(out.light_frame); r != im.light_reports.end()) {
+    out.light_levels = r->second.transform.levels;
+    out.light_peaks = static_cast<int>(r->second.peak_detection.peaks.size());
+  }
 
   // The viewer: at the view frame's rig centre, looking at the car, turned by the user.
   t0 = Clock::now();

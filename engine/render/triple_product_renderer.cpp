@@ -486,22 +486,7 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
     im.spec = visibility::VoxelGridSpec::Covering(glm::dvec3(-1), glm::dvec3(1), options_.voxel_resolution);
   }
 
-  // Material terms: the glTF metallic-roughness unless an override names the material.
-  std::vector<GpuTerm> gpu_terms;
-  for (const auto& mat : im.materials) {
-    std::vector<material::Brdf> terms;
-    for (const auto& o : options_.materials)
-      if (o.material.empty() || Lower(mat.name).find(Lower(o.material)) != std::string::npos) terms = o.brdfs;
-    std::vector<GpuTerm> row(kTermsPerMaterial);
-    if (terms.empty()) {
-      row[0].type.x = kGltf;
-    } else {
-      for (std::size_t k = 0; k < terms.size(); ++k) row[k] = ToGpuTerm(terms[k]);
-    }
-    gpu_terms.insert(gpu_terms.end(), row.begin(), row.end());
-    im.material_terms.push_back(std::move(terms));
-  }
-  im.terms_buffer = MakeBuffer(gpu_terms);
+  SetMaterials(options_.materials);
   // λα² of the NDF's SG fit on α ∈ [kMinAlpha, 1] (brdf_lobes.glsl interpolates it).
   std::vector<float> table(512);
   for (std::size_t i = 0; i < table.size(); ++i) {
@@ -536,6 +521,31 @@ const std::vector<glm::vec3>& TripleProductRenderer::world_triangles() const { r
 const visibility::VoxelGridSpec& TripleProductRenderer::voxel_spec() const { return impl_->spec; }
 int TripleProductRenderer::peaks_without_cone() const {
   return std::max(0, static_cast<int>(impl_->lighting.peaks.size()) - kMaxPeakCones);
+}
+
+void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides) {
+  Impl& im = *impl_;
+  // Material terms: the glTF metallic-roughness unless an override names the material.
+  std::vector<GpuTerm> gpu_terms;
+  detail::MaterialTerms material_terms;
+  for (const auto& mat : im.materials) {
+    std::vector<material::Brdf> terms;
+    for (const auto& o : overrides)
+      if (o.material.empty() || Lower(mat.name).find(Lower(o.material)) != std::string::npos) terms = o.brdfs;
+    if (terms.size() > static_cast<std::size_t>(kTermsPerMaterial))
+      throw Error("material override", "at most " + std::to_string(kTermsPerMaterial) + " BRDF terms");
+    std::vector<GpuTerm> row(kTermsPerMaterial);
+    if (terms.empty()) {
+      row[0].type.x = kGltf;
+    } else {
+      for (std::size_t k = 0; k < terms.size(); ++k) row[k] = ToGpuTerm(terms[k]);
+    }
+    gpu_terms.insert(gpu_terms.end(), row.begin(), row.end());
+    material_terms.push_back(std::move(terms));
+  }
+  im.terms_buffer = MakeBuffer(gpu_terms);
+  im.material_terms = std::move(material_terms);
+  options_.materials = std::move(overrides);
 }
 
 void TripleProductRenderer::SetLighting(const lighting::SgLighting& model, const glm::dmat3& world_from_lighting) {

@@ -167,6 +167,11 @@ class TripleProductRenderer {
 
   RenderResult Render(const PinholeCamera& camera, ShadeDevice device = ShadeDevice::kGpu);
 
+  // Between frames (the player's panel): the material overrides, as options.materials, and
+  // whether peaks get their own cones. Throws odvr::Error for an override it cannot shade.
+  void SetMaterials(std::vector<MaterialOverride> overrides);
+  void SetPeakCones(bool on) { options_.peak_cones = on; }
+
   const RenderOptions& options() const { return options_; }
   // The model's triangles in the world (three vertices each), and the grid that holds them.
   const std::vector<glm::vec3>& world_triangles() const;
