@@ -7,10 +7,12 @@
 #include <imgui.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -109,12 +111,23 @@ std::pair<int, int> ParseResize(const std::string& text) {
 
 // The car's panel, a second ImGui window at the top right, collapsed at first (the picture stays
 // clear): edits `look` and shows the light frame's figures. True when a control changed.
-bool CarPanel(int window_width, int levels, const AugmentedFrame& frame, CarLook* look) {
+// `widgets` gets each checkbox's centre and the panel's corners in window pixels (--trace:
+// scripted clicks find them there).
+bool CarPanel(int window_width, int levels, bool open, const AugmentedFrame& frame, CarLook* look,
+              std::map<std::string, std::array<int, 2>>* widgets) {
   ImGui::SetNextWindowPos(ImVec2(static_cast<float>(window_width) - 10, 10), ImGuiCond_FirstUseEver, ImVec2(1, 0));
-  ImGui::SetNextWindowCollapsed(true, ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowCollapsed(!open, ImGuiCond_FirstUseEver);
   ImGui::SetNextWindowBgAlpha(0.7f);
   const CarLook before = *look;
+  widgets->clear();
+  const auto centre = [&](const std::string& name) {
+    const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+    (*widgets)[name] = {static_cast<int>(0.5f * (lo.x + hi.x)), static_cast<int>(0.5f * (lo.y + hi.y))};
+  };
   if (ImGui::Begin("car", nullptr, ImGuiWindowFlags_AlwaysAutoResize)) {
+    const ImVec2 at = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
+    (*widgets)["window_min"] = {static_cast<int>(at.x), static_cast<int>(at.y)};
+    (*widgets)["window_max"] = {static_cast<int>(at.x + size.x), static_cast<int>(at.y + size.y)};
     int model = static_cast<int>(look->model);
     ImGui::Combo("material", &model, "glTF (as modelled)\0Phong\0Cook-Torrance\0");
     look->model = static_cast<CarLook::Model>(model);
@@ -132,12 +145,15 @@ bool CarPanel(int window_width, int levels, const AugmentedFrame& frame, CarLook
       }
     }
     ImGui::Checkbox("peaks", &look->peaks);
+    centre("peaks");
     ImGui::SameLine();
     ImGui::Checkbox("peak cones", &look->cones);
+    centre("cones");
     for (int l = 0; l < std::min(levels, static_cast<int>(look->levels.size())); ++l) {
       if (l > 0) ImGui::SameLine();
       bool on = look->levels[static_cast<std::size_t>(l)];
       if (ImGui::Checkbox(("L" + std::to_string(l)).c_str(), &on)) look->levels[static_cast<std::size_t>(l)] = on;
+      centre("L" + std::to_string(l));
     }
     ImGui::Text("decode %.1f  light %.1f  render %.1f  composite %.1f ms", frame.ms.decode, frame.ms.lighting,
                 frame.ms.render, frame.ms.composite);
@@ -218,6 +234,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
   double drive_t = 0;  // the script's clock: it stops while paused
   AugmentedFrame frame;
   std::vector<std::string> overlay;
+  std::map<std::string, std::array<int, 2>> panel_widgets;
   while (!glfwWindowShouldClose(w)) {
     glfwPollEvents();
     const auto now = Clock::now();
@@ -241,7 +258,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
     }
     // Paused, the car and its light stand still: the picture only changes with the look.
     const double dt = paused ? 0.0 : wall_dt;
-    const bool keys_free = !ImGui::GetIO().WantCaptureKeyboard;
+    const bool keys_free = !ImGui::GetIO().WantTextInput;
     auto held = [&](int a, int b) {
       return keys_free && (glfwGetKey(w, a) == GLFW_PRESS || glfwGetKey(w, b) == GLFW_PRESS);
     };
@@ -290,9 +307,12 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
         ImGui::SetNextWindowBgAlpha(0.6f);
         ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
         for (const auto& line : overlay) ImGui::TextUnformatted(line.c_str());
+        const ImVec2 at = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
         ImGui::End();
         CarLook car_look = scene.look();
-        if (CarPanel(fb_w, o.lighting_levels, frame, &car_look)) scene.SetLook(car_look);
+        if (CarPanel(fb_w, o.lighting_levels, o.panel, frame, &car_look, &panel_widgets)) scene.SetLook(car_look);
+        panel_widgets["overlay_min"] = {static_cast<int>(at.x), static_cast<int>(at.y)};
+        panel_widgets["overlay_max"] = {static_cast<int>(at.x + size.x), static_cast<int>(at.y + size.y)};
       }
       ImGui::Render();
       ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
@@ -330,6 +350,12 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
           {"car_pixels", frame.car_pixels},
           {"overlay_shown", show_overlay},
           {"overlay", overlay},
+          {"look",
+           {{"model", static_cast<int>(scene.look().model)},
+            {"levels", scene.look().levels},
+            {"peaks", scene.look().peaks},
+            {"cones", scene.look().cones}}},
+          {"panel", panel_widgets},
           {"ms",
            {{"decode", frame.ms.decode},
             {"lighting", frame.ms.lighting},

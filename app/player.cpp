@@ -145,7 +145,7 @@ PlayerReport RunWindow(const PlayerOptions& options) {
       if (key == GLFW_KEY_F1) show_overlay = !show_overlay;
       if (key == GLFW_KEY_F12) screenshot = true;
     }
-    const bool keys_free = !ImGui::GetIO().WantCaptureKeyboard;
+    const bool keys_free = !ImGui::GetIO().WantTextInput;
     auto held = [&](int key) { return keys_free && glfwGetKey(w, key) == GLFW_PRESS ? 1.0 : 0.0; };
     view.Turn(held(GLFW_KEY_RIGHT) - held(GLFW_KEY_LEFT), held(GLFW_KEY_UP) - held(GLFW_KEY_DOWN), dt);
     clock.Advance(dt);

@@ -50,7 +50,9 @@ WindowInput::WindowInput(GLFWwindow* w) {
   });
   glfwSetKeyCallback(w, [](GLFWwindow* win, int key, int scancode, int action, int mods) {
     ImGui_ImplGlfw_KeyCallback(win, key, scancode, action, mods);
-    if (ImGui::GetIO().WantCaptureKeyboard || action == GLFW_RELEASE) return;
+    // Only typing belongs to ImGui: a click on a checkbox makes it "want" the keyboard for a
+    // frame (its item is active), and a key pressed then (F12, space, W) would be lost.
+    if (ImGui::GetIO().WantTextInput || action == GLFW_RELEASE) return;
     if (key == GLFW_KEY_ESCAPE || key == GLFW_KEY_Q) glfwSetWindowShouldClose(win, GLFW_TRUE);
     Of(win).events_.keys.push_back(key);
   });

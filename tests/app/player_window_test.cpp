@@ -297,5 +297,52 @@ TEST(PlayerWindowGL, CarAppearsAtItsProjectionAndDrivesWithW) {
   std::printf("overlay: \"%s\"\n", timings.c_str());
 }
 
+// The x y of a panel widget in the player's last trace line (a shell expression for a step).
+std::string PanelWidget(const std::string& name) {
+  return "$(tail -n1 trace.jsonl | grep -o '\"" + name + "\":\\[[^]]*' | cut -d[ -f2 | tr , ' ')";
+}
+
+// The car panel under real clicks: xdotool clicks its L0 checkbox (found through the trace), the
+// light's level 0 is left out and the car as drawn changes; a second click brings it back. The
+// screenshots compared are taken with the panel and overlay hidden (F1), the whole picture clear.
+TEST(PlayerWindowGL, ClickOnThePanelsLevelCheckboxChangesTheCar) {
+  if (const std::string tool = MissingTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
+  ScratchDir scratch("odvr_player_window_panel");
+  ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15 --panel");
+  window.Shot("mousemove --window $W 5 265 key space F1");  // 1: paused, nothing over the picture
+  // ImGui toggles a checkbox on the frame that sees the release, and the scene renders the new
+  // look on the frame after: a screenshot in between.
+  for (int i = 0; i < 2; ++i) {
+    window.Shot("key F1");  // 2, 6: the panel, its widgets' places in the trace
+    window.Shot("mousemove --window $W " + PanelWidget("L0") + " click 1");
+    window.Shot("");
+    window.Shot("mousemove --window $W 5 265 key F1");  // 5, 9: hidden again
+  }
+  const auto t = window.Run();
+  ASSERT_EQ(t.size(), 10u) << window.log();
+  EXPECT_NE(window.log().find("player exit 0"), std::string::npos) << window.log();
+  EXPECT_TRUE(t[1]["look"]["levels"][0].get<bool>());
+  EXPECT_FALSE(t[5]["look"]["levels"][0].get<bool>());
+  EXPECT_TRUE(t[5]["look"]["levels"][1].get<bool>());
+  EXPECT_TRUE(t[9]["look"]["levels"][0].get<bool>());
+  EXPECT_EQ(t[5]["car_world_xz"], t[1]["car_world_xz"]) << "paused";
+  for (int i : {1, 5, 9}) EXPECT_FALSE(t[i]["overlay_shown"].get<bool>());
+
+  const cv::Mat off = Changed(Shot(t[1]), Shot(t[5]));
+  const int changed = cv::countNonZero(off), back = cv::countNonZero(Changed(Shot(t[1]), Shot(t[9])));
+  const cv::Moments m = cv::moments(off, true);
+  const double px = t[5]["car_pixel"][0].get<double>(), py = t[5]["car_pixel"][1].get<double>();
+  EXPECT_GT(changed, 100);
+  EXPECT_EQ(back, 0);
+  ASSERT_GT(m.m00, 0);
+  EXPECT_NEAR(m.m10 / m.m00, px, 30) << "the change is on the car";
+  EXPECT_NEAR(m.m01 / m.m00, py, 30) << "the change is on the car";
+  std::printf(
+      "L0 clicked at (%d, %d): %d pixels changed, centroid (%.0f, %.0f), car at (%.0f, %.0f); clicked "
+      "again: %d\n",
+      t[2]["panel"]["L0"][0].get<int>(), t[2]["panel"]["L0"][1].get<int>(), changed, m.m10 / m.m00, m.m01 / m.m00, px,
+      py, back);
+}
+
 }  // namespace
 }  // namespace odvr::app
