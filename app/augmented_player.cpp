@@ -7,16 +7,22 @@
 #include <imgui.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "app/augmented_scene.h"
 #include "app/bench_common.h"
+#include "app/car_look.h"
 #include "app/player.h"
+#include "app/view_controller.h"
+#include "app/window_input.h"
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
@@ -103,6 +109,65 @@ std::pair<int, int> ParseResize(const std::string& text) {
   return {a, b};
 }
 
+// The car's panel, a second ImGui window at the top right, collapsed at first (the picture stays
+// clear): edits `look` and shows the light frame's figures. True when a control changed.
+// `widgets` gets each checkbox's centre and the panel's corners in window pixels (--trace:
+// scripted clicks find them there).
+bool CarPanel(int window_width, int levels, bool open, const AugmentedFrame& frame, CarLook* look,
+              std::map<std::string, std::array<int, 2>>* widgets) {
+  ImGui::SetNextWindowPos(ImVec2(static_cast<float>(window_width) - 10, 10), ImGuiCond_FirstUseEver, ImVec2(1, 0));
+  ImGui::SetNextWindowCollapsed(!open, ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowBgAlpha(0.7f);
+  const CarLook before = *look;
+  widgets->clear();
+  const auto centre = [&](const std::string& name) {
+    const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+    (*widgets)[name] = {static_cast<int>(0.5f * (lo.x + hi.x)), static_cast<int>(0.5f * (lo.y + hi.y))};
+  };
+  if (ImGui::Begin("car", nullptr, ImGuiWindowFlags_AlwaysAutoResize)) {
+    const ImVec2 at = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
+    (*widgets)["window_min"] = {static_cast<int>(at.x), static_cast<int>(at.y)};
+    (*widgets)["window_max"] = {static_cast<int>(at.x + size.x), static_cast<int>(at.y + size.y)};
+    int model = static_cast<int>(look->model);
+    ImGui::Combo("material", &model, "glTF (as modelled)\0Phong\0Cook-Torrance\0");
+    look->model = static_cast<CarLook::Model>(model);
+    auto slider = [](const char* label, double* v, float lo, float hi, const char* format, bool log = false) {
+      float f = static_cast<float>(*v);
+      if (ImGui::SliderFloat(label, &f, lo, hi, format, log ? ImGuiSliderFlags_Logarithmic : 0)) *v = f;
+    };
+    if (look->model != CarLook::Model::kGltf) {
+      ImGui::ColorEdit3("colour", look->colour.data());
+      slider("kd/ks mix (ks)", &look->ks, 0, 1, "%.2f");
+      if (look->model == CarLook::Model::kPhong) slider("Phong n", &look->phong_n, 1, 5000, "%.0f", true);
+      if (look->model == CarLook::Model::kCookTorrance) {
+        slider("roughness", &look->roughness, 0.01f, 1, "%.2f");
+        slider("Fresnel F0", &look->fresnel_f0, 0, 1, "%.2f");
+      }
+    }
+    ImGui::Checkbox("peaks", &look->peaks);
+    centre("peaks");
+    ImGui::SameLine();
+    ImGui::Checkbox("peak cones", &look->cones);
+    centre("cones");
+    for (int l = 0; l < std::min(levels, static_cast<int>(look->levels.size())); ++l) {
+      if (l > 0) ImGui::SameLine();
+      bool on = look->levels[static_cast<std::size_t>(l)];
+      if (ImGui::Checkbox(("L" + std::to_string(l)).c_str(), &on)) look->levels[static_cast<std::size_t>(l)] = on;
+      centre("L" + std::to_string(l));
+    }
+    ImGui::Text("decode %.1f  light %.1f  render %.1f  composite %.1f ms", frame.ms.decode, frame.ms.lighting,
+                frame.ms.render, frame.ms.composite);
+    // The light frame's model: what each level kept and the residue (mean |residual| over mean
+    // radiance) it left, after the peaks were taken out.
+    ImGui::Text("light frame %d: %d peaks", frame.light_frame, frame.light_peaks);
+    for (const auto& l : frame.light_levels)
+      ImGui::Text("L%d  %4d/%4d SRBFs  residue %.3f -> %.3f", l.level, l.srbfs_kept, l.srbfs_total, l.residue_before,
+                  l.residue_after);
+  }
+  ImGui::End();
+  return !(*look == before);
+}
+
 }  // namespace
 
 PlayerReport RunAugmentedHeadless(const PlayerOptions& o) {
@@ -151,66 +216,64 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
   ImGui::GetIO().IniFilename = nullptr;
   ImGui_ImplGlfw_InitForOpenGL(w, true);
   ImGui_ImplOpenGL3_Init("#version 450");
-  double scroll = 0;
-  glfwSetWindowUserPointer(w, &scroll);
-  glfwSetScrollCallback(w, [](GLFWwindow* win, double dx, double dy) {
-    ImGui_ImplGlfw_ScrollCallback(win, dx, dy);
-    if (!ImGui::GetIO().WantCaptureMouse) *static_cast<double*>(glfwGetWindowUserPointer(win)) += dy;
-  });
-  glfwSetKeyCallback(w, [](GLFWwindow* win, int key, int scancode, int action, int mods) {
-    ImGui_ImplGlfw_KeyCallback(win, key, scancode, action, mods);
-    if (action == GLFW_PRESS && (key == GLFW_KEY_ESCAPE || key == GLFW_KEY_Q)) glfwSetWindowShouldClose(win, GLFW_TRUE);
-  });
+  WindowInput input(w);
 
   PlayerReport report;
   report.mode = "window";
   std::vector<FrameTimings> all;
-  AugmentedView view{o.view.yaw_deg, o.view.pitch_deg, std::clamp(o.view.fov_deg, 30.0, 150.0), true};
+  // The look is an offset from looking at the car: the same free look as the plain player.
+  ViewController look;
+  look.Set({o.view.yaw_deg, o.view.pitch_deg, o.view.fov_deg});
+  bool draw_car = true, show_overlay = true, paused = false, ready = false, resized = false;
+  int shots = 0;
   gl::Texture shown{gl::NoCreate};
   gl::Framebuffer read_fbo;
   int shown_w = 0, shown_h = 0;
-  double last_x = 0, last_y = 0;
-  bool dragging = false, resized = false;
   const auto start = Clock::now();
   auto previous = start;
+  double drive_t = 0;  // the script's clock: it stops while paused
   AugmentedFrame frame;
+  std::vector<std::string> overlay;
+  std::map<std::string, std::array<int, 2>> panel_widgets;
   while (!glfwWindowShouldClose(w)) {
     glfwPollEvents();
     const auto now = Clock::now();
-    const double dt = std::chrono::duration<double>(now - previous).count();
+    const double wall_dt = std::chrono::duration<double>(now - previous).count();
     const double t = std::chrono::duration<double>(now - start).count();
     previous = now;
-    const bool keys_free = !ImGui::GetIO().WantCaptureKeyboard;
-    auto held = [&](int a, int b) {
-      return keys_free && (glfwGetKey(w, a) == GLFW_PRESS || glfwGetKey(w, b) == GLFW_PRESS);
-    };
-    CarInput input = DriveInputAt(script, t);
-    input.forward |= held(GLFW_KEY_W, GLFW_KEY_UP);
-    input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
-    input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
-    input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
-    scene.Drive(input, dt);
 
     int fb_w = 0, fb_h = 0;
     glfwGetFramebufferSize(w, &fb_w, &fb_h);
-    double x, y;
-    glfwGetCursorPos(w, &x, &y);
-    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS && (dragging || !ImGui::GetIO().WantCaptureMouse)) {
-      if (dragging && fb_h > 0) {  // a drag across the window's height turns by the field of view
-        view.yaw_deg -= (x - last_x) * view.vfov_deg / fb_h;
-        view.pitch_deg = std::clamp(view.pitch_deg + (y - last_y) * view.vfov_deg / fb_h, -90.0, 90.0);
-      }
-      dragging = true;
-    } else {
-      dragging = false;
+    const WindowInput::Events in = input.Take();
+    look.Drag(in.drag_dx, in.drag_dy, std::max(fb_h, 1));
+    look.Scroll(in.scroll);
+    bool screenshot = false;
+    for (const int key : in.keys) {
+      if (key == GLFW_KEY_SPACE) paused = !paused;
+      if (key == GLFW_KEY_C) draw_car = !draw_car;
+      if (key == GLFW_KEY_EQUAL || key == GLFW_KEY_KP_ADD) look.Scroll(1);
+      if (key == GLFW_KEY_MINUS || key == GLFW_KEY_KP_SUBTRACT) look.Scroll(-1);
+      if (key == GLFW_KEY_F1) show_overlay = !show_overlay;
+      if (key == GLFW_KEY_F12) screenshot = true;
     }
-    last_x = x;
-    last_y = y;
-    view.vfov_deg = std::clamp(view.vfov_deg * std::pow(0.95, std::exchange(scroll, 0.0)), 30.0, 150.0);
+    // Paused, the car and its light stand still: the picture only changes with the look.
+    const double dt = paused ? 0.0 : wall_dt;
+    const bool keys_free = !ImGui::GetIO().WantTextInput;
+    auto held = [&](int a, int b) {
+      return keys_free && (glfwGetKey(w, a) == GLFW_PRESS || glfwGetKey(w, b) == GLFW_PRESS);
+    };
+    CarInput car_input = DriveInputAt(script, drive_t);
+    drive_t += dt;
+    car_input.forward |= held(GLFW_KEY_W, GLFW_KEY_UP);
+    car_input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
+    car_input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
+    car_input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
+    scene.Drive(car_input, dt);
 
     if (fb_w > 0 && fb_h > 0) {
       // The renderer's smallest useful picture; a tiny window shows it scaled down.
       const int rw = std::max(fb_w, 16), rh = std::max(fb_h, 16);
+      const AugmentedView view{look.state().yaw_deg, look.state().pitch_deg, look.state().fov_deg, draw_car};
       frame = scene.Render(rw, rh, view, dt);
       all.push_back(Timings(frame));
       report.frames.push_back(Record(frame));
@@ -228,19 +291,29 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
       // Rows were uploaded top first; the window's y grows upward: flip in the blit.
       glBlitNamedFramebuffer(read_fbo.id(), 0, 0, 0, rw, rh, 0, fb_h, fb_w, 0, GL_COLOR_BUFFER_BIT, GL_LINEAR);
 
+      overlay = {Printf("frame %d (light %d)   car %.1f km/h%s", frame.view_frame, frame.light_frame,
+                        scene.car().state().speed_mps * 3.6, paused ? "  (paused)" : ""),
+                 Printf("decode %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.decode,
+                        frame.ms.lighting, frame.ms.render, frame.ms.composite),
+                 Printf("total %.1f ms (%.1f fps)  yaw %.0f pitch %.0f fov %.0f", frame.ms.total,
+                        frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0, look.state().yaw_deg, look.state().pitch_deg,
+                        look.state().fov_deg),
+                 "WASD drive, drag look, wheel zoom, space pause, C car, F1 panel, F12 shot"};
       ImGui_ImplOpenGL3_NewFrame();
       ImGui_ImplGlfw_NewFrame();
       ImGui::NewFrame();
-      ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
-      ImGui::SetNextWindowBgAlpha(0.6f);
-      ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
-      ImGui::Text("frame %d (light %d)   car %.1f km/h", frame.view_frame, frame.light_frame,
-                  scene.car().state().speed_mps * 3.6);
-      ImGui::Text("decode %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.decode, frame.ms.lighting,
-                  frame.ms.render, frame.ms.composite);
-      ImGui::Text("total %.1f ms  (%.1f fps)", frame.ms.total, frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0);
-      ImGui::Text("WASD/arrows drive, drag looks, scroll zooms, Esc quits");
-      ImGui::End();
+      if (show_overlay) {
+        ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
+        ImGui::SetNextWindowBgAlpha(0.6f);
+        ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+        for (const auto& line : overlay) ImGui::TextUnformatted(line.c_str());
+        const ImVec2 at = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
+        ImGui::End();
+        CarLook car_look = scene.look();
+        if (CarPanel(fb_w, o.lighting_levels, o.panel, frame, &car_look, &panel_widgets)) scene.SetLook(car_look);
+        panel_widgets["overlay_min"] = {static_cast<int>(at.x), static_cast<int>(at.y)};
+        panel_widgets["overlay_max"] = {static_cast<int>(at.x + size.x), static_cast<int>(at.y + size.y)};
+      }
       ImGui::Render();
       ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
     }
@@ -250,18 +323,48 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
       resized = true;
     }
     const bool quitting = o.quit_after_s > 0 && t > o.quit_after_s;
-    if (quitting && !o.screenshot.empty() && fb_w > 0 && fb_h > 0) {
-      std::vector<unsigned char> rgba(static_cast<std::size_t>(fb_w) * fb_h * 4);
-      glPixelStorei(GL_PACK_ALIGNMENT, 1);
-      glReadPixels(0, 0, fb_w, fb_h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-      cv::Mat image(fb_h, fb_w, CV_8UC4, rgba.data()), bgr;
-      cv::cvtColor(image, bgr, cv::COLOR_RGBA2BGR);
-      cv::flip(bgr, bgr, 0);
-      WriteFileAtomically(o.screenshot, [&](const std::filesystem::path& tmp) {
-        if (!cv::imwrite(tmp.string(), bgr)) throw Error(o.screenshot, "cannot write PNG");
-      });
+    if (quitting && !o.screenshot.empty() && fb_w > 0 && fb_h > 0) WriteWindowScreenshot(o.screenshot, fb_w, fb_h);
+    std::string shot;
+    if (screenshot && fb_w > 0 && fb_h > 0) {
+      shot = ScreenshotPath(o.screenshot, ++shots);
+      WriteWindowScreenshot(shot, fb_w, fb_h);
+      if (!o.trace) std::fprintf(stderr, "screenshot: %s\n", shot.c_str());
     }
     glfwSwapBuffers(w);
+    if (o.trace && (!ready || !shot.empty()) && fb_w > 0 && fb_h > 0) {
+      const CarState& car = scene.car().state();
+      nlohmann::json j{
+          {"event", ready ? "screenshot" : "ready"},
+          {"file", shot},
+          {"size", {fb_w, fb_h}},
+          {"view_frame", frame.view_frame},
+          {"light_frame", frame.light_frame},
+          {"paused", paused},
+          {"draw_car", draw_car},
+          {"yaw", look.state().yaw_deg},
+          {"pitch", look.state().pitch_deg},
+          {"fov", look.state().fov_deg},
+          {"car_world_xz", {car.position.x, car.position.z}},
+          {"car_speed_mps", car.speed_mps},
+          {"car_pixel", {frame.car_in_front ? frame.car_pixel.x : -1, frame.car_in_front ? frame.car_pixel.y : -1}},
+          {"car_pixels", frame.car_pixels},
+          {"overlay_shown", show_overlay},
+          {"overlay", overlay},
+          {"look",
+           {{"model", static_cast<int>(scene.look().model)},
+            {"levels", scene.look().levels},
+            {"peaks", scene.look().peaks},
+            {"cones", scene.look().cones}}},
+          {"panel", panel_widgets},
+          {"ms",
+           {{"decode", frame.ms.decode},
+            {"lighting", frame.ms.lighting},
+            {"render", frame.ms.render},
+            {"composite", frame.ms.composite},
+            {"total", frame.ms.total}}}};
+      PrintTrace(j.dump());
+      ready = true;
+    }
     if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
   }
   ImGui_ImplOpenGL3_Shutdown();

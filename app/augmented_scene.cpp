@@ -134,6 +134,7 @@ struct AugmentedScene::Impl {
   std::map<int, Cached> panos;
   long use_clock = 0;
   std::map<int, lighting::SgLighting> lights;
+  std::map<int, lighting::LightingReport> light_reports;
   std::unique_ptr<lighting::LightingBuilder> builder;
 
   scene::GltfScene model;
@@ -141,8 +142,7 @@ struct AugmentedScene::Impl {
   glm::dvec3 car_centre{0};  // bounding-box middle in the car frame
   LightWeightSmoother smoother;
 
-  int padded_frame = -1;  // which view frame `padded` holds
-  cv::Mat padded;         // linear float RGB, one wrapped column each side, one replicated row
+  int gpu_frame = -1;  // which view frame the renderer's background holds (the last shown)
   sphere::EquirectImage last_background;
 
   // Linear float RGB of an 8-bit sRGB image.
@@ -251,6 +251,17 @@ void AugmentedScene::PlaceCar(double s_m, double lateral_m) {
   car_->Reset(pos + lateral_m * left, dir);
 }
 
+void AugmentedScene::SetLook(const CarLook& look) {
+  if (look == look_) return;
+  if (look.model != look_.model || look.colour != look_.colour || look.ks != look_.ks ||
+      look.phong_n != look_.phong_n || look.roughness != look_.roughness || look.fresnel_f0 != look_.fresnel_f0)
+    impl_->renderer->SetMaterials(MaterialOverrides(look));
+  else
+    look.Check();
+  impl_->renderer->SetPeakCones(look.cones);
+  look_ = look;
+}
+
 void AugmentedScene::TeleportCar(const glm::dvec3& world_position) {
   car_->Reset(world_position, car_->state().forward);
 }
@@ -284,7 +295,11 @@ const lighting::SgLighting& AugmentedScene::FrameLighting(int frame) {
   }
   sphere::EquirectImage e(lin.cols, lin.rows);
   std::memcpy(e.rgb.data(), lin.ptr<float>(), e.rgb.size() * sizeof(float));
-  return im.lights.emplace(frame, im.builder->Build(e)).first->second;
+  lighting::LightingReport report;
+  lighting::SgLighting light = im.builder->Build(e, &report);
+  report.peak_detection.residue = {};  // a frame-sized image; only the peaks' count is shown
+  im.light_reports[frame] = std::move(report);
+  return im.lights.emplace(frame, std::move(light)).first->second;
 }
 
 AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView& view, double dt_s) {
@@ -383,21 +398,25 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
   }
   for (std::size_t i = 0; i < turned.size(); ++i)
     blend.emplace_back(&turned[i], std::next(weights.begin(), static_cast<std::ptrdiff_t>(i))->second);
-  const lighting::SgLighting light = lighting::SgLighting::Blend(blend);
+  const lighting::SgLighting light = ApplyLightToggles(lighting::SgLighting::Blend(blend), look_);
   const glm::dmat4 world_from_car = car_->WorldFromCar();
   const glm::dmat3 car_from_world = glm::transpose(glm::dmat3(world_from_car));
   im.renderer->SetLighting(light, car_from_world * im.world_from_pano[static_cast<std::size_t>(ref_k)]);
   out.ms.lighting = MsSince(t0);
   out.light_frame = frame_index_[static_cast<std::size_t>(light_k)];
+  if (auto r = im.light_reports.find(out.light_frame); r != im.light_reports.end()) {
+    out.light_levels = r->second.transform.levels;
+    out.light_peaks = static_cast<int>(r->second.peak_detection.peaks.size());
+  }
 
   // The viewer: at the view frame's rig centre, looking at the car, turned by the user.
   t0 = Clock::now();
   int view_frame = frame_index_[static_cast<std::size_t>(view_k)];
-  if (!ok[view_frame] && im.padded_frame >= 0) {
-    view_frame = im.padded_frame;  // undecodable: keep the last picture and its pose
+  if (!ok[view_frame] && im.gpu_frame >= 0) {
+    view_frame = im.gpu_frame;  // undecodable: keep the last picture and its pose
     view_k = static_cast<int>(std::find(frame_index_.begin(), frame_index_.end(), view_frame) - frame_index_.begin());
   }
-  if (!ok[view_frame] && im.padded_frame < 0) {
+  if (!ok[view_frame] && im.gpu_frame < 0) {
     for (const auto& [frame, good] : ok)
       if (good) view_frame = frame;
     view_k = static_cast<int>(std::find(frame_index_.begin(), frame_index_.end(), view_frame) - frame_index_.begin());
@@ -425,45 +444,27 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
       out.car_pixel = {0.5 * width + camera.focal_px() * c.x / c.z, 0.5 * height + camera.focal_px() * c.y / c.z};
   }
 
-  // Background: the view frame's panorama through the camera.
-  if (im.padded_frame != view_frame && im.panos.count(view_frame)) {
+  // Background: the view frame's panorama through the camera, sampled by the renderer's
+  // composite on the GPU (uploaded once per view frame, turned each frame), the car (unless
+  // hidden) and its shadow over it.
+  if (im.gpu_frame != view_frame && im.panos.count(view_frame)) {
     const cv::Mat lin = Impl::Linear(im.panos[view_frame].rgb8);
-    cv::Mat wrapped;
-    cv::copyMakeBorder(lin, wrapped, 0, 0, 1, 1, cv::BORDER_WRAP);
-    cv::copyMakeBorder(wrapped, im.padded, 1, 1, 0, 0, cv::BORDER_REPLICATE);
-    im.padded_frame = view_frame;
+    sphere::EquirectImage pano(lin.cols, lin.rows);
+    std::memcpy(pano.rgb.data(), lin.ptr<float>(), pano.rgb.size() * sizeof(float));
+    im.renderer->SetBackgroundEquirect(pano);
+    im.gpu_frame = view_frame;
   }
-  sphere::EquirectImage background(width, height);
-  if (!im.padded.empty()) {
-    const int pw = im.padded.cols - 2, ph = im.padded.rows - 2;
-    const glm::dmat3 pano_from_car =
-        glm::transpose(im.world_from_pano[static_cast<std::size_t>(view_k)]) * glm::dmat3(world_from_car);
-    cv::Mat map_x(height, width, CV_32F), map_y(height, width, CV_32F);
-    cv::parallel_for_(cv::Range(0, height), [&](const cv::Range& rows) {
-      for (int y = rows.start; y < rows.end; ++y)
-        for (int x = 0; x < width; ++x) {
-          const glm::dvec2 px = sphere::EquirectPixel(pano_from_car * camera.Ray(x + 0.5, y + 0.5), pw, ph);
-          map_x.at<float>(y, x) = static_cast<float>(px.x + 0.5);  // +1 border − 0.5 centre
-          map_y.at<float>(y, x) = static_cast<float>(px.y + 0.5);
-        }
-    });
-    cv::Mat bg(height, width, CV_32FC3, background.rgb.data());
-    cv::remap(im.padded, bg, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  }
+  const glm::dmat3 pano_from_car =
+      glm::transpose(im.world_from_pano[static_cast<std::size_t>(view_k)]) * glm::dmat3(world_from_car);
+  im.renderer->SetBackgroundRotation(glm::transpose(pano_from_car));
   double composite_ms = MsSince(t0);
-
-  if (view.draw_car) {
-    t0 = Clock::now();
-    im.renderer->SetBackgroundImage(background);
-    render::RenderResult r = im.renderer->Render(camera);
-    const double wall = MsSince(t0);
-    out.ms.render = std::max(0.0, wall - r.ms.composite);
-    composite_ms += r.ms.composite;
-    out.image = std::move(r.composite);
-    out.car_pixels = r.counts.car_pixels;
-  } else {
-    out.image = std::move(background);
-  }
+  t0 = Clock::now();
+  render::RenderResult r = im.renderer->Render(camera, render::ShadeDevice::kGpu, view.draw_car);
+  const double wall = MsSince(t0);
+  out.ms.render = std::max(0.0, wall - r.ms.composite);
+  composite_ms += r.ms.composite;
+  out.image = std::move(r.composite);
+  out.car_pixels = r.counts.car_pixels;
   t0 = Clock::now();
   if (options_.exposure != 1.0)
     for (float& v : out.image.rgb) v *= static_cast<float>(options_.exposure);

@@ -22,7 +22,9 @@
 #include <vector>
 
 #include "app/car_controller.h"
+#include "app/car_look.h"
 #include "app/frame_picker.h"
+#include "engine/lighting/lighting_builder.h"
 #include "engine/lighting/sg_lighting.h"
 #include "engine/render/triple_product_renderer.h"
 #include "engine/sphere/equirect_image.h"
@@ -74,6 +76,10 @@ struct AugmentedFrame {
   bool car_in_front = false;
   int car_pixels = 0;
   AugmentedTimings ms;
+  // How well the light frame's model holds its panorama: the residual transform's levels (kept
+  // SRBFs, the residue left after each) and the peaks taken out first.
+  std::vector<lighting::LevelReport> light_levels;
+  int light_peaks = 0;
 };
 
 // Viewer offsets on top of looking at the car.
@@ -98,6 +104,9 @@ class AugmentedScene {
   // Moves the car to a world position (projected on the road), keeping its heading.
   void TeleportCar(const glm::dvec3& world_position);
   AugmentedFrame Render(int width, int height, const AugmentedView& view = {}, double dt_s = 0.04);
+  // The car's material and light toggles, from the next Render on. Throws odvr::UsageError.
+  void SetLook(const CarLook& look);
+  const CarLook& look() const { return look_; }
 
   const CarController& car() const { return *car_; }
   const FramePicker& picker() const { return *picker_; }
@@ -118,6 +127,7 @@ class AugmentedScene {
   std::unique_ptr<CarController> car_;
   std::vector<int> frame_index_;
   render::PinholeCamera last_camera_;
+  CarLook look_;
 };
 
 }  // namespace odvr::app

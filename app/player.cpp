@@ -12,11 +12,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <glm/gtc/type_ptr.hpp>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "app/frame_decoder.h"
 #include "app/playback_clock.h"
+#include "app/window_input.h"
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
@@ -94,31 +96,10 @@ class Playback {
   std::string last_event_;
 };
 
-struct WindowInput {
-  double scroll = 0;
-  bool toggle_pause = false;
-  int step = 0;
-  double speed_factor = 1;
-};
-
-void WriteScreenshot(const std::string& path, int width, int height) {
-  std::vector<unsigned char> rgba(static_cast<std::size_t>(width) * height * 4);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-  cv::Mat image(height, width, CV_8UC4, rgba.data()), bgr;
-  cv::cvtColor(image, bgr, cv::COLOR_RGBA2BGR);
-  cv::flip(bgr, bgr, 0);  // GL rows are bottom-up
-  WriteFileAtomically(path, [&](const std::filesystem::path& tmp) {
-    if (!cv::imwrite(tmp.string(), bgr)) throw Error(path, "cannot write PNG");
-  });
-}
-
 PlayerReport RunWindow(const PlayerOptions& options) {
   gl::WindowContext window(options.width, options.height, "odvr — " + options.video);
   GLFWwindow* w = window.window();
   Playback playback(options);
-  WindowInput input;
-  glfwSetWindowUserPointer(w, &input);
   glfwSwapInterval(1);
 
   IMGUI_CHECKVERSION();
@@ -126,32 +107,18 @@ PlayerReport RunWindow(const PlayerOptions& options) {
   ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini next to the user's files
   ImGui_ImplGlfw_InitForOpenGL(w, true);
   ImGui_ImplOpenGL3_Init("#version 450");
-  // ImGui's GLFW backend owns the callbacks; ours chain after it.
-  glfwSetScrollCallback(w, [](GLFWwindow* win, double dx, double dy) {
-    ImGui_ImplGlfw_ScrollCallback(win, dx, dy);
-    if (!ImGui::GetIO().WantCaptureMouse) static_cast<WindowInput*>(glfwGetWindowUserPointer(win))->scroll += dy;
-  });
-  glfwSetKeyCallback(w, [](GLFWwindow* win, int key, int scancode, int action, int mods) {
-    ImGui_ImplGlfw_KeyCallback(win, key, scancode, action, mods);
-    if (ImGui::GetIO().WantCaptureKeyboard || action == GLFW_RELEASE) return;
-    auto* in = static_cast<WindowInput*>(glfwGetWindowUserPointer(win));
-    if (key == GLFW_KEY_SPACE && action == GLFW_PRESS) in->toggle_pause = true;
-    if (key == GLFW_KEY_PERIOD) in->step += 1;
-    if (key == GLFW_KEY_COMMA) in->step -= 1;
-    if (key == GLFW_KEY_RIGHT_BRACKET && action == GLFW_PRESS) in->speed_factor *= 2;
-    if (key == GLFW_KEY_LEFT_BRACKET && action == GLFW_PRESS) in->speed_factor /= 2;
-    if (key == GLFW_KEY_ESCAPE || key == GLFW_KEY_Q) glfwSetWindowShouldClose(win, GLFW_TRUE);
-  });
+  WindowInput input(w);
 
   PlayerReport report;
   report.mode = "window";
   std::vector<double> totals;
-  double last_x = 0, last_y = 0;
-  bool dragging = false;
   float exposure = static_cast<float>(options.exposure);
+  bool show_overlay = true, ready = false;
+  int shots = 0;
   const auto start = Clock::now();
   auto previous = Clock::now();
   FrameTimings timings;
+  std::vector<std::string> overlay;
   while (!glfwWindowShouldClose(w)) {
     glfwPollEvents();
     const double dt = std::chrono::duration<double>(Clock::now() - previous).count();
@@ -159,56 +126,63 @@ PlayerReport RunWindow(const PlayerOptions& options) {
     PlaybackClock& clock = playback.clock();
     ViewController& view = playback.view();
 
-    // Input: drag to look, scroll to zoom, arrows to turn, space/,/./[/] for playback.
-    const bool mouse_free = !ImGui::GetIO().WantCaptureMouse;
-    double x, y;
-    glfwGetCursorPos(w, &x, &y);
+    // Input: drag to look, scroll or +/- to zoom, arrows to turn, space/,/./[/] for playback,
+    // F1 the overlay, F12 a screenshot.
     int fb_w = 0, fb_h = 0;
     glfwGetFramebufferSize(w, &fb_w, &fb_h);
-    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS && (dragging || mouse_free)) {
-      if (dragging) view.Drag(x - last_x, y - last_y, std::max(fb_h, 1));
-      dragging = true;
-    } else {
-      dragging = false;
+    const WindowInput::Events in = input.Take();
+    view.Drag(in.drag_dx, in.drag_dy, std::max(fb_h, 1));
+    view.Scroll(in.scroll);
+    bool screenshot = false;
+    for (const int key : in.keys) {
+      if (key == GLFW_KEY_SPACE) clock.TogglePause();
+      if (key == GLFW_KEY_PERIOD) clock.Step(1);
+      if (key == GLFW_KEY_COMMA) clock.Step(-1);
+      if (key == GLFW_KEY_RIGHT_BRACKET) clock.SetSpeed(clock.speed() * 2);
+      if (key == GLFW_KEY_LEFT_BRACKET) clock.SetSpeed(clock.speed() / 2);
+      if (key == GLFW_KEY_EQUAL || key == GLFW_KEY_KP_ADD) view.Scroll(1);
+      if (key == GLFW_KEY_MINUS || key == GLFW_KEY_KP_SUBTRACT) view.Scroll(-1);
+      if (key == GLFW_KEY_F1) show_overlay = !show_overlay;
+      if (key == GLFW_KEY_F12) screenshot = true;
     }
-    last_x = x;
-    last_y = y;
-    view.Scroll(std::exchange(input.scroll, 0.0));
-    const double yaw_dir = (glfwGetKey(w, GLFW_KEY_RIGHT) == GLFW_PRESS) - (glfwGetKey(w, GLFW_KEY_LEFT) == GLFW_PRESS);
-    const double pitch_dir = (glfwGetKey(w, GLFW_KEY_UP) == GLFW_PRESS) - (glfwGetKey(w, GLFW_KEY_DOWN) == GLFW_PRESS);
-    view.Turn(yaw_dir, pitch_dir, dt);
-    if (std::exchange(input.toggle_pause, false)) clock.TogglePause();
-    if (const int step = std::exchange(input.step, 0)) clock.Step(step);
-    if (input.speed_factor != 1) clock.SetSpeed(clock.speed() * std::exchange(input.speed_factor, 1.0));
+    const bool keys_free = !ImGui::GetIO().WantTextInput;
+    auto held = [&](int key) { return keys_free && glfwGetKey(w, key) == GLFW_PRESS ? 1.0 : 0.0; };
+    view.Turn(held(GLFW_KEY_RIGHT) - held(GLFW_KEY_LEFT), held(GLFW_KEY_UP) - held(GLFW_KEY_DOWN), dt);
     clock.Advance(dt);
 
     // A minimized or 1×1 window still runs the loop; it just draws nothing worth seeing.
     if (fb_w > 0 && fb_h > 0) {
       timings = playback.Draw(fb_w, fb_h, exposure);
       totals.push_back(timings.total_ms);
+      overlay = {
+          Printf("frame %ld / %d   %.2f s%s", playback.shown_index(), clock.frame_count(), clock.position_s(),
+                 clock.playing() ? "" : "  (paused)"),
+          Printf("decode %.2f ms  upload %.2f ms  render %.2f ms", timings.decode_ms, timings.upload_ms,
+                 timings.render_ms),
+          Printf("total %.2f ms (median %.2f)  %.0f fps", timings.total_ms, Median(totals),
+                 static_cast<double>(ImGui::GetIO().Framerate)),
+          Printf("yaw %.1f  pitch %.1f  fov %.1f", view.state().yaw_deg, view.state().pitch_deg, view.state().fov_deg)};
 
       ImGui_ImplOpenGL3_NewFrame();
       ImGui_ImplGlfw_NewFrame();
       ImGui::NewFrame();
-      ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
-      ImGui::SetNextWindowBgAlpha(0.6f);
-      ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
-      ImGui::Text("frame %ld / %d   %.2f s", playback.shown_index(), clock.frame_count(), clock.position_s());
-      ImGui::Text("decode %.2f ms  upload %.2f ms  render %.2f ms", timings.decode_ms, timings.upload_ms,
-                  timings.render_ms);
-      ImGui::Text("total %.2f ms (median %.2f)  %.0f fps", timings.total_ms, Median(totals), ImGui::GetIO().Framerate);
-      ImGui::Text("yaw %.0f  pitch %.0f  fov %.0f", view.state().yaw_deg, view.state().pitch_deg, view.state().fov_deg);
-      if (ImGui::Button(clock.playing() ? "pause" : "play")) clock.TogglePause();
-      ImGui::SameLine();
-      int frame = clock.frame();
-      if (ImGui::SliderInt("frame", &frame, 0, clock.frame_count() - 1)) clock.Seek(frame);
-      float speed = static_cast<float>(clock.speed());
-      if (ImGui::SliderFloat("speed", &speed, 0.125f, 8.0f, "%.3g", ImGuiSliderFlags_Logarithmic))
-        clock.SetSpeed(speed);
-      ImGui::SliderFloat("exposure", &exposure, 0.05f, 20.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
-      if (!playback.last_event().empty())
-        ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", playback.last_event().c_str());
-      ImGui::End();
+      if (show_overlay) {
+        ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
+        ImGui::SetNextWindowBgAlpha(0.6f);
+        ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+        for (const auto& line : overlay) ImGui::TextUnformatted(line.c_str());
+        if (ImGui::Button(clock.playing() ? "pause" : "play")) clock.TogglePause();
+        ImGui::SameLine();
+        int frame = clock.frame();
+        if (ImGui::SliderInt("frame", &frame, 0, clock.frame_count() - 1)) clock.Seek(frame);
+        float speed = static_cast<float>(clock.speed());
+        if (ImGui::SliderFloat("speed", &speed, 0.125f, 8.0f, "%.3g", ImGuiSliderFlags_Logarithmic))
+          clock.SetSpeed(speed);
+        ImGui::SliderFloat("exposure", &exposure, 0.05f, 20.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+        if (!playback.last_event().empty())
+          ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", playback.last_event().c_str());
+        ImGui::End();
+      }
       ImGui::Render();
       ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
     }
@@ -216,8 +190,34 @@ PlayerReport RunWindow(const PlayerOptions& options) {
     const bool quitting =
         options.quit_after_s > 0 && std::chrono::duration<double>(Clock::now() - start).count() > options.quit_after_s;
     if (quitting && !options.screenshot.empty() && fb_w > 0 && fb_h > 0)
-      WriteScreenshot(options.screenshot, fb_w, fb_h);
+      WriteWindowScreenshot(options.screenshot, fb_w, fb_h);
+    std::string shot;
+    if (screenshot && fb_w > 0 && fb_h > 0) {
+      shot = ScreenshotPath(options.screenshot, ++shots);
+      WriteWindowScreenshot(shot, fb_w, fb_h);
+      if (!options.trace) spdlog::info("screenshot: {}", shot);
+    }
     glfwSwapBuffers(w);
+    // After the swap: a test that waits for "ready" sends its input to a window that is showing.
+    if (options.trace && (!ready || !shot.empty()) && fb_w > 0 && fb_h > 0) {
+      nlohmann::json j{{"event", ready ? "screenshot" : "ready"},
+                       {"file", shot},
+                       {"size", {fb_w, fb_h}},
+                       {"frame", playback.shown_index()},
+                       {"playing", clock.playing()},
+                       {"yaw", view.state().yaw_deg},
+                       {"pitch", view.state().pitch_deg},
+                       {"fov", view.state().fov_deg},
+                       {"overlay_shown", show_overlay},
+                       {"overlay", overlay},
+                       {"ms",
+                        {{"decode", timings.decode_ms},
+                         {"upload", timings.upload_ms},
+                         {"render", timings.render_ms},
+                         {"total", timings.total_ms}}}};
+      PrintTrace(j.dump());
+      ready = true;
+    }
     if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
   }
   ImGui_ImplOpenGL3_Shutdown();
@@ -249,7 +249,7 @@ PlayerReport RunHeadless(const PlayerOptions& options) {
     report.last = t;
     char name[32];
     std::snprintf(name, sizeof name, "frame_%06d.png", i);
-    WriteScreenshot((std::filesystem::path(options.out_dir) / name).string(), options.width, options.height);
+    WriteWindowScreenshot((std::filesystem::path(options.out_dir) / name).string(), options.width, options.height);
     ++report.frames_shown;
   }
   report.median_total_ms = Median(totals);

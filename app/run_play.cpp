@@ -134,6 +134,8 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_option("--voxels", o.voxels, "Car visibility grid per side (64, 128, 256)")->capture_default_str();
   sub->add_flag("--no-car", c->no_car, "Play the demo without its car");
   sub->add_option("--resize", o.resize, "Window: resize to WxH halfway through --quit-after (tests)");
+  sub->add_flag("--panel", o.panel, "Window: open the car's material and light panel at the start");
+  sub->add_flag("--trace", o.trace, "Window: a JSON line on stdout when ready and per F12 screenshot (tests)");
   sub->add_flag("--json", c->json, "Print a JSON report");
   sub->add_flag("--live", c->live, "Live: the rig's cameras stitched and relit every frame (needs --rig)");
   sub->add_option("--rig", c->live_options.rig, "Live: the rig calibration (config/demo_rig.json, rig.json)");

@@ -8,6 +8,7 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <glm/matrix.hpp>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "engine/core/error.h"
@@ -353,6 +354,9 @@ struct TripleProductRenderer::Impl {
   sphere::EquirectImage environment, background_image;
   gl::Texture environment_texture{gl::NoCreate};
   bool background_is_image = false;
+  // Set by SetBackgroundRotation: the environment's own rotation for the background, apart from
+  // the lighting's (a player shows one frame's panorama and lights the car by another's).
+  std::optional<glm::dmat3> background_from_world;
   // The Monte-Carlo baseline's sampling tables of `environment` (render_mc.comp).
   gl::Buffer env_row_cdf{gl::NoCreate}, env_col_cdf{gl::NoCreate}, env_texel_prob{gl::NoCreate};
   gl::Texture mc_environment{gl::NoCreate};
@@ -486,22 +490,7 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
     im.spec = visibility::VoxelGridSpec::Covering(glm::dvec3(-1), glm::dvec3(1), options_.voxel_resolution);
   }
 
-  // Material terms: the glTF metallic-roughness unless an override names the material.
-  std::vector<GpuTerm> gpu_terms;
-  for (const auto& mat : im.materials) {
-    std::vector<material::Brdf> terms;
-    for (const auto& o : options_.materials)
-      if (o.material.empty() || Lower(mat.name).find(Lower(o.material)) != std::string::npos) terms = o.brdfs;
-    std::vector<GpuTerm> row(kTermsPerMaterial);
-    if (terms.empty()) {
-      row[0].type.x = kGltf;
-    } else {
-      for (std::size_t k = 0; k < terms.size(); ++k) row[k] = ToGpuTerm(terms[k]);
-    }
-    gpu_terms.insert(gpu_terms.end(), row.begin(), row.end());
-    im.material_terms.push_back(std::move(terms));
-  }
-  im.terms_buffer = MakeBuffer(gpu_terms);
+  SetMaterials(options_.materials);
   // λα² of the NDF's SG fit on α ∈ [kMinAlpha, 1] (brdf_lobes.glsl interpolates it).
   std::vector<float> table(512);
   for (std::size_t i = 0; i < table.size(); ++i) {
@@ -538,6 +527,31 @@ int TripleProductRenderer::peaks_without_cone() const {
   return std::max(0, static_cast<int>(impl_->lighting.peaks.size()) - kMaxPeakCones);
 }
 
+void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides) {
+  Impl& im = *impl_;
+  // Material terms: the glTF metallic-roughness unless an override names the material.
+  std::vector<GpuTerm> gpu_terms;
+  detail::MaterialTerms material_terms;
+  for (const auto& mat : im.materials) {
+    std::vector<material::Brdf> terms;
+    for (const auto& o : overrides)
+      if (o.material.empty() || Lower(mat.name).find(Lower(o.material)) != std::string::npos) terms = o.brdfs;
+    if (terms.size() > static_cast<std::size_t>(kTermsPerMaterial))
+      throw Error("material override", "at most " + std::to_string(kTermsPerMaterial) + " BRDF terms");
+    std::vector<GpuTerm> row(kTermsPerMaterial);
+    if (terms.empty()) {
+      row[0].type.x = kGltf;
+    } else {
+      for (std::size_t k = 0; k < terms.size(); ++k) row[k] = ToGpuTerm(terms[k]);
+    }
+    gpu_terms.insert(gpu_terms.end(), row.begin(), row.end());
+    material_terms.push_back(std::move(terms));
+  }
+  im.terms_buffer = MakeBuffer(gpu_terms);
+  im.material_terms = std::move(material_terms);
+  options_.materials = std::move(overrides);
+}
+
 void TripleProductRenderer::SetLighting(const lighting::SgLighting& model, const glm::dmat3& world_from_lighting) {
   Impl& im = *impl_;
   im.lighting = Prepare(model, world_from_lighting, options_.lighting_levels);
@@ -555,14 +569,24 @@ void TripleProductRenderer::SetLighting(const lighting::SgLighting& model, const
   im.peak_buffer = MakeBuffer(peaks);
 }
 
-void TripleProductRenderer::SetEnvironment(const sphere::EquirectImage& equirect) {
-  if (equirect.empty()) throw Error("environment", "empty image");
+void TripleProductRenderer::SetBackgroundEquirect(const sphere::EquirectImage& equirect) {
+  if (equirect.empty()) throw Error("background", "empty image");
   Impl& im = *impl_;
   im.environment = equirect;
   im.background_is_image = false;
   im.environment_texture = gl::Texture::Create2D(GL_RGB32F, equirect.width, equirect.height);
   im.environment_texture.Upload2D(GL_RGB, GL_FLOAT, equirect.rgb.data());
   im.environment_texture.SetWrap(GL_REPEAT, GL_CLAMP_TO_EDGE).SetFilter(GL_LINEAR, GL_LINEAR);
+}
+
+void TripleProductRenderer::SetBackgroundRotation(const glm::dmat3& world_from_background) {
+  impl_->background_from_world = glm::transpose(world_from_background);
+}
+
+void TripleProductRenderer::SetEnvironment(const sphere::EquirectImage& equirect) {
+  SetBackgroundEquirect(equirect);
+  Impl& im = *impl_;
+  im.background_from_world.reset();
   if (options_.monte_carlo_samples > 0) {
     // Texel probabilities ∝ (luminance + a floor) × solid angle; the floor (1e-3 of the mean)
     // keeps every direction reachable by this strategy alone.
@@ -622,7 +646,7 @@ void TripleProductRenderer::SetBackgroundImage(const sphere::EquirectImage& imag
   im.environment_texture.SetFilter(GL_NEAREST, GL_NEAREST);
 }
 
-RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDevice device) {
+RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDevice device, bool draw_model) {
   camera.Check();
   Impl& im = *impl_;
   const int w = camera.width, h = camera.height;
@@ -636,11 +660,14 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   if (monte_carlo && !im.mc_environment) throw Error("render", "the Monte-Carlo baseline needs SetEnvironment");
   RenderResult out;
   const auto t_total = Clock::now();
+  // Without the model: nothing voxelized, drawn or occluding, so the composite is the background.
+  const bool geometry = im.has_geometry && draw_model;
+  static std::vector<Impl::Primitive> no_primitives;
   gl::Finish();
 
   // Voxelize.
   auto t0 = Clock::now();
-  if (im.has_geometry) {
+  if (geometry) {
     if (device == ShadeDevice::kGpu) {
       im.voxelizer->Voxelize(im.triangle_buffer, im.triangles.size() / 3);
       gl::Finish();
@@ -658,7 +685,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   const glm::dmat3 camera_from_world = glm::transpose(camera.world_from_camera);
   const double f = camera.focal_px();
   double near = 0.01, far = 10;
-  if (im.has_geometry) {
+  if (geometry) {
     double dmin = 1e300, dmax = 0;
     for (int c = 0; c < 8; ++c) {
       const glm::dvec3 corner((c & 1) ? im.bounds.max.x : im.bounds.min.x, (c & 2) ? im.bounds.max.y : im.bounds.min.y,
@@ -697,7 +724,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   gp.SetMat4("uClipFromWorld", glm::value_ptr(clip_from_world))
       .Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
            static_cast<float>(camera.position.z));
-  for (auto& p : im.primitives) {
+  for (auto& p : geometry ? im.primitives : no_primitives) {
     const auto& m = im.materials[static_cast<std::size_t>(p.material)];
     gp.Set("uMaterialId", static_cast<float>(p.material + 1))
         .Set("uBaseColorFactor", m.base_color_factor.x, m.base_color_factor.y, m.base_color_factor.z,
@@ -762,8 +789,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uCosineAsSg", options_.lobes.cosine == material::CosineTerm::kAsSg ? 1 : 0)
         .Set("uGroundCenter", static_cast<float>(ground_centre.x), static_cast<float>(ground_centre.y))
         .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size));
-    SetConeTraceUniforms(sp, im.spec, im.has_geometry, options_.trace);
-    if (im.has_geometry) glBindTextureUnit(0, im.voxelizer->texture().id());
+    SetConeTraceUniforms(sp, im.spec, geometry, options_.trace);
+    if (geometry) glBindTextureUnit(0, im.voxelizer->texture().id());
     im.g_position.BindImage(0, GL_READ_ONLY);
     im.g_normal.BindImage(1, GL_READ_ONLY);
     im.g_base.BindImage(2, GL_READ_ONLY);
@@ -796,7 +823,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
           .Set("uSamples", options_.monte_carlo_samples)
           // A ray of a voxel's width: level 0 all along (cone_trace.glsl clamps the diameter).
           .Set("uShadowRayHalfAngle", 1e-4f);
-      SetConeTraceUniforms(mp, im.spec, im.has_geometry, options_.trace);
+      SetConeTraceUniforms(mp, im.spec, geometry, options_.trace);
       im.mc_environment.BindUnit(1);
       im.env_row_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
       im.env_col_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
@@ -812,12 +839,13 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     // Composite.
     t0 = Clock::now();
     gl::Program& cp = im.composite_program;
+    const glm::mat3 background_efw(im.background_from_world.value_or(im.lighting.env_from_world));
     cp.Set("uBackgroundIsImage", im.background_is_image ? 1 : 0)
         .Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
              static_cast<float>(camera.position.z))
         .SetMat3("uWorldFromCamera", glm::value_ptr(wfc))
         .Set("uFocal", static_cast<float>(f))
-        .SetMat3("uEnvFromWorld", glm::value_ptr(efw));
+        .SetMat3("uEnvFromWorld", glm::value_ptr(background_efw));
     glProgramUniform2i(cp.id(), cp.Uniform("uSize"), w, h);
     if (im.environment_texture) {
       im.environment_texture.BindUnit(0);
@@ -868,7 +896,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     in.materials = &im.material_terms;
     in.lighting = &im.lighting;
     in.bins = im.bins.get();
-    in.grid = im.has_geometry ? im.cpu_grid.get() : nullptr;
+    in.grid = geometry ? im.cpu_grid.get() : nullptr;
     in.options = options_;
     in.ground_centre = ground_centre;
     detail::ShadeReference(in, &out, &counts);
@@ -885,7 +913,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
           const float* b = im.background_image.at(x, y);
           bg = glm::vec3(b[0], b[1], b[2]);
         } else if (!im.environment.empty()) {
-          bg = SampleEquirect(im.environment, im.lighting.env_from_world * camera.Ray(x + 0.5, y + 0.5));
+          bg = SampleEquirect(im.environment, im.background_from_world.value_or(im.lighting.env_from_world) *
+                                                  camera.Ray(x + 0.5, y + 0.5));
         }
         const float a = out.car_alpha[i];
         for (int c = 0; c < 3; ++c) {

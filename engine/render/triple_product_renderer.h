@@ -164,8 +164,19 @@ class TripleProductRenderer {
   // or an image of exactly the output size.
   void SetEnvironment(const sphere::EquirectImage& equirect);
   void SetBackgroundImage(const sphere::EquirectImage& image);
+  // The background only (the Monte-Carlo baseline's environment stays): an equirect frame seen
+  // through the camera on the GPU, turned into the world by SetBackgroundRotation (until then, or
+  // after a SetEnvironment, by the lighting's rotation).
+  void SetBackgroundEquirect(const sphere::EquirectImage& equirect);
+  void SetBackgroundRotation(const glm::dmat3& world_from_background);
 
-  RenderResult Render(const PinholeCamera& camera, ShadeDevice device = ShadeDevice::kGpu);
+  // draw_model false: the background alone, through the same composite (a player hiding the car).
+  RenderResult Render(const PinholeCamera& camera, ShadeDevice device = ShadeDevice::kGpu, bool draw_model = true);
+
+  // Between frames (the player's panel): the material overrides, as options.materials, and
+  // whether peaks get their own cones. Throws odvr::Error for an override it cannot shade.
+  void SetMaterials(std::vector<MaterialOverride> overrides);
+  void SetPeakCones(bool on) { options_.peak_cones = on; }
 
   const RenderOptions& options() const { return options_; }
   // The model's triangles in the world (three vertices each), and the grid that holds them.

@@ -19,6 +19,7 @@
 
 #include "engine/core/error.h"
 #include "engine/lighting/sg.h"
+#include "engine/sphere/equirect.h"
 #include "tests/engine/gl/gl_test_context.h"
 #include "tests/engine/render/render_test_scenes.h"
 
@@ -519,6 +520,54 @@ TEST_F(TripleProductRendererGL, HardCaseEmptySceneRendersTheBackground) {
   // A background of the wrong size is refused, naming both sizes.
   r.SetBackgroundImage(sphere::EquirectImage(10, 10, 0.f));
   EXPECT_THROW(r.Render(View()), Error);
+}
+
+// A player's background: one panorama turned by its own rotation (not the lighting's), sampled by
+// the GPU composite as the CPU path samples it; without the model, the composite is that
+// background alone.
+TEST_F(TripleProductRendererGL, BackgroundEquirectHasItsOwnRotationAndCanStandAlone) {
+  RenderOptions o;
+  o.voxel_resolution = 64;
+  TripleProductRenderer r(SphereAndBox(), glm::dmat4(1.0), o);
+  r.SetLighting(SunnySky());
+  sphere::EquirectImage pano(128, 64);
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 128; ++x)
+      for (int c = 0; c < 3; ++c)
+        pano.at(x, y)[c] = 0.2f + 0.15f * static_cast<float>(std::sin(0.3 * x + c) + std::cos(0.2 * y));
+  r.SetBackgroundEquirect(pano);
+  const RenderResult unturned = r.Render(View());
+  const double angle = 0.7;  // about +Y
+  const glm::dmat3 turn(glm::dvec3(std::cos(angle), 0, -std::sin(angle)), glm::dvec3(0, 1, 0),
+                        glm::dvec3(std::sin(angle), 0, std::cos(angle)));
+  r.SetBackgroundRotation(turn);
+  const RenderResult gpu = r.Render(View()), cpu = r.Render(View(), ShadeDevice::kCpu);
+  double gpu_cpu = 0, moved = 0, expected = 0;
+  const PinholeCamera cam = View();
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      // The background where the direction, taken back into the panorama by the rotation, falls.
+      const glm::dvec3 d = glm::transpose(turn) * cam.Ray(x + 0.5, y + 0.5);
+      const glm::dvec2 p = sphere::EquirectPixel(d, 128, 64);
+      const int px = std::clamp(static_cast<int>(p.x), 0, 127), py = std::clamp(static_cast<int>(p.y), 0, 63);
+      for (int c = 0; c < 3; ++c) {
+        gpu_cpu =
+            std::max(gpu_cpu, static_cast<double>(std::abs(gpu.background.at(x, y)[c] - cpu.background.at(x, y)[c])));
+        moved = std::max(moved,
+                         static_cast<double>(std::abs(gpu.background.at(x, y)[c] - unturned.background.at(x, y)[c])));
+        expected = std::max(expected, static_cast<double>(std::abs(gpu.background.at(x, y)[c] - pano.at(px, py)[c])));
+      }
+    }
+  EXPECT_LT(gpu_cpu, 0.01);
+  EXPECT_GT(moved, 0.1) << "the rotation turned the background";
+  EXPECT_LT(expected, 0.08) << "within a texel's variation of the rotated look-up";
+  const RenderResult alone = r.Render(View(), ShadeDevice::kGpu, false);
+  EXPECT_EQ(alone.counts.car_pixels, 0);
+  EXPECT_GT(gpu.counts.car_pixels, 100);
+  EXPECT_EQ(alone.composite.rgb, alone.background.rgb);
+  EXPECT_EQ(alone.background.rgb, gpu.background.rgb);
+  std::printf("background: GPU vs CPU max %.4f, turned vs not max %.3f, vs the rotated look-up max %.3f\n", gpu_cpu,
+              moved, expected);
 }
 
 TEST_F(TripleProductRendererGL, HardCaseModelFarLargerThanTheVoxelVolume) {

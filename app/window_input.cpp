@@ -1,0 +1,94 @@
+#include "app/window_input.h"
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <backends/imgui_impl_glfw.h>
+#include <imgui.h>
+
+#include <cstdarg>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <utility>
+
+#include "engine/core/atomic_file.h"
+#include "engine/core/error.h"
+#include "engine/gl/objects.h"
+
+namespace odvr::app {
+
+WindowInput& WindowInput::Of(GLFWwindow* w) { return *static_cast<WindowInput*>(glfwGetWindowUserPointer(w)); }
+
+WindowInput::WindowInput(GLFWwindow* w) {
+  glfwSetWindowUserPointer(w, this);
+  glfwGetCursorPos(w, &last_x_, &last_y_);
+  glfwSetMouseButtonCallback(w, [](GLFWwindow* win, int button, int action, int mods) {
+    ImGui_ImplGlfw_MouseButtonCallback(win, button, action, mods);
+    if (button != GLFW_MOUSE_BUTTON_LEFT) return;
+    WindowInput& in = Of(win);
+    // A press on the panel belongs to ImGui; a drag begun on the picture keeps turning the view
+    // even when it crosses the panel. The drag starts where the last motion event left the cursor, not where the
+    // server's pointer is now (glfwGetCursorPos asks it): by now it may be well into the drag.
+    if (action == GLFW_PRESS && !ImGui::GetIO().WantCaptureMouse) in.dragging_ = true;
+    if (action == GLFW_RELEASE) in.dragging_ = false;
+  });
+  // ImGui 1.86's backend reads the cursor by polling, so this callback is ours alone.
+  glfwSetCursorPosCallback(w, [](GLFWwindow* win, double x, double y) {
+    WindowInput& in = Of(win);
+    if (in.dragging_) {
+      in.events_.drag_dx += x - in.last_x_;
+      in.events_.drag_dy += y - in.last_y_;
+    }
+    in.last_x_ = x;
+    in.last_y_ = y;
+  });
+  glfwSetScrollCallback(w, [](GLFWwindow* win, double dx, double dy) {
+    ImGui_ImplGlfw_ScrollCallback(win, dx, dy);
+    if (!ImGui::GetIO().WantCaptureMouse) Of(win).events_.scroll += dy;
+  });
+  glfwSetKeyCallback(w, [](GLFWwindow* win, int key, int scancode, int action, int mods) {
+    ImGui_ImplGlfw_KeyCallback(win, key, scancode, action, mods);
+    // Only typing belongs to ImGui: a click on a checkbox makes it "want" the keyboard for a
+    // frame (its item is active), and a key pressed then (F12, space, W) would be lost.
+    if (ImGui::GetIO().WantTextInput || action == GLFW_RELEASE) return;
+    if (key == GLFW_KEY_ESCAPE || key == GLFW_KEY_Q) glfwSetWindowShouldClose(win, GLFW_TRUE);
+    Of(win).events_.keys.push_back(key);
+  });
+}
+
+WindowInput::Events WindowInput::Take() { return std::exchange(events_, Events{}); }
+
+void WriteWindowScreenshot(const std::string& path, int width, int height) {
+  std::vector<unsigned char> rgba(static_cast<std::size_t>(width) * height * 4);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+  cv::Mat image(height, width, CV_8UC4, rgba.data()), bgr;
+  cv::cvtColor(image, bgr, cv::COLOR_RGBA2BGR);
+  cv::flip(bgr, bgr, 0);  // GL rows are bottom-up
+  WriteFileAtomically(path, [&](const std::filesystem::path& tmp) {
+    if (!cv::imwrite(tmp.string(), bgr)) throw Error(path, "cannot write PNG");
+  });
+}
+
+std::string Printf(const char* format, ...) {
+  char buf[512];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buf, sizeof buf, format, args);
+  va_end(args);
+  return buf;
+}
+
+void PrintTrace(const std::string& json) { std::cout << json << std::endl; }
+
+std::string ScreenshotPath(const std::string& final_screenshot, int n) {
+  char name[40];
+  std::snprintf(name, sizeof name, "odvr_screenshot_%03d.png", n);
+  const std::filesystem::path dir = final_screenshot.empty() ? std::filesystem::current_path()
+                                                             : std::filesystem::path(final_screenshot).parent_path();
+  return (dir / name).string();
+}
+
+}  // namespace odvr::app
