@@ -62,6 +62,7 @@ class ResidualTransformGpu {
   int grids_input_width_ = 0, grids_input_height_ = 0;
   // Scratch images (vec4 per pixel) sized for the finest grid, and the per-level state.
   gl::Buffer recon_[2], residue_, remaining_, row_sums_, totals_, flags_, counters_, mu_[2];
+  std::vector<gl::Buffer> level_mu_;  // exact reconstruction: every accepted level's amplitudes
   gl::Texture upload_{gl::NoCreate};  // the frame of Run(EquirectImage), reused while the size holds
 };
 
