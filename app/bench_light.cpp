@@ -45,7 +45,7 @@ struct BenchLightOptions {
   int base_width = lighting::ResidualTransformOptions{}.base_width;
   std::string normalization = "partition";
   double region_cutoff = lighting::ResidualTransformOptions{}.region_cutoff;
-  bool exact_reconstruction = false;
+  bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
 };
 
 struct Row {
@@ -368,8 +368,9 @@ CommandFn AddBenchLight(CLI::App* sub) {
   sub->add_option("--sweeps", o->sweeps, "Projection passes per level of the transform")->check(CLI::Range(1, 16));
   sub->add_option("--region-cutoff", o->region_cutoff, "An SRBF's cap: where its Gaussian exceeds this")
       ->check(CLI::Range(1e-9, 0.4));
-  sub->add_flag("--exact-reconstruction", o->exact_reconstruction,
-                "Evaluate every coarser level on each level's grid instead of magnifying the coarser grid");
+  sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
+                "Evaluate every coarser level on each level's grid (default), or magnify the coarser grid's "
+                "reconstruction");
   sub->add_option("--normalization", o->normalization, "Amplitude normalization of the transform")
       ->check(CLI::IsMember({"none", "local-sum", "partition"}));
   sub->add_option("--base-width", o->base_width, "Working-grid width of level 0")->check(CLI::Range(8, 4096));

@@ -340,8 +340,9 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     const auto level_start = Clock::now();
     const auto [w, h] = GridOf(s, input.width, input.height);
     if (s > 0) {
-      // R_{<s} on this grid: the coarser reconstruction magnified (it is smooth at this scale),
-      // plus the previous level evaluated exactly here.
+      // R_{<s} on this grid: every coarser level evaluated here (their overlap lists on this
+      // grid are built once, like the level's own), or the coarser reconstruction magnified plus
+      // the previous level evaluated here (see exact_reconstruction).
       if (options_.exact_reconstruction) {
         recon = sphere::EquirectImage(w, h);
         for (std::size_t i = 0; i < recon.rgb.size(); i += 3) {

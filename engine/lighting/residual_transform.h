@@ -59,10 +59,11 @@ struct ResidualTransformOptions {
   // R_{<s} on level s's grid: every coarser level evaluated there (true), or the coarser grid's
   // reconstruction magnified bilinearly plus level s−1 evaluated (false). Magnifying is cheaper,
   // but each level then also fits the magnification's error of the coarser ones, which the
-  // model (evaluated exactly) does not contain: on the issue-3 maps that bias left the diffuse
-  // and glossy-20 errors at 4–21x the least-squares optimum and made them grow with levels;
-  // evaluating exactly brings them to 0.1–2.7x (`odvr bench light --exact-reconstruction`).
-  bool exact_reconstruction = false;
+  // model (evaluated exactly) does not contain: on the 18 issue-3 maps at 2048 wide that bias
+  // held the diffuse and glossy-20 errors at up to 5.7x and 21x the least-squares optimum;
+  // evaluated exactly they are at most 1.04x and 2.7x (`odvr bench light`), for about 10 % more
+  // CPU time.
+  bool exact_reconstruction = true;
   void Check() const;  // throws odvr::Error
 };
 

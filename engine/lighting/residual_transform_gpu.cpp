@@ -303,9 +303,9 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   for (int s = 0; s < levels; ++s) {
     const auto level_start = Clock::now();
     const Grid& grid = *grids_[static_cast<std::size_t>(s)];
-    // R_{<s} on this grid and the residue r_s = I_s − R_{<s}, in one pass over the pixels: at
-    // level 0 the constant; then the coarser reconstruction magnified plus the previous level
-    // evaluated exactly here.
+    // R_{<s} on this grid and the residue r_s = I_s − R_{<s}: at level 0 the constant; then every
+    // coarser level evaluated here, or (exact_reconstruction off) the coarser reconstruction
+    // magnified plus the previous level evaluated here.
     if (s == 0) {
       const float fill[4] = {model.constant.x, model.constant.y, model.constant.z, 0.f};
       glClearNamedBufferSubData(recon_[recon].id(), GL_RGBA32F, 0, grid.pixels() * kPixelBytes, GL_RGBA, GL_FLOAT,

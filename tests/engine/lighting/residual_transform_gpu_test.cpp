@@ -86,11 +86,11 @@ TEST_F(ResidualTransformGpuGL, SunnySkyMatchesCpuWithEveryNormalization) {
   }
 }
 
-TEST_F(ResidualTransformGpuGL, ExactReconstructionMatchesCpu) {
-  // Every coarser level evaluated on each level's grid (no magnification), all levels kept.
+TEST_F(ResidualTransformGpuGL, MagnifiedReconstructionMatchesCpu) {
+  // The cheaper option: the coarser grid's reconstruction magnified, all levels kept.
   ResidualTransformOptions o;
   o.stop_threshold = 0;
-  o.exact_reconstruction = true;
+  o.exact_reconstruction = false;
   ResidualTransform cpu(o);
   TransformReport report;
   cpu.Run(SunnySky(256, 128), &report);

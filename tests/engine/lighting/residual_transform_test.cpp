@@ -98,6 +98,7 @@ TEST(ResidualTransform, ExactReconstructionComesCloseToTheLeastSquaresOptimum) {
   ResidualTransformOptions o;
   o.levels = 4;
   o.stop_threshold = 0;
+  o.exact_reconstruction = false;
   const LightingErrors magnified = ev.Evaluate(ResidualTransform(o).Run(frame));
   o.exact_reconstruction = true;
   const LightingErrors exact = ev.Evaluate(ResidualTransform(o).Run(frame));
