@@ -43,6 +43,9 @@ struct BenchLightOptions {
   bool report_only = false;
   int sweeps = lighting::ResidualTransformOptions{}.sweeps;
   int base_width = lighting::ResidualTransformOptions{}.base_width;
+  std::string normalization = "partition";
+  double region_cutoff = lighting::ResidualTransformOptions{}.region_cutoff;
+  bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
 };
 
 struct Row {
@@ -321,6 +324,11 @@ int RunBenchLight(BenchLightOptions o) {
             lo.transform.stop_threshold = 0;  // the bench measures each level count as asked
             lo.transform.sweeps = o.sweeps;
             lo.transform.base_width = o.base_width;
+            lo.transform.region_cutoff = o.region_cutoff;
+            lo.transform.exact_reconstruction = o.exact_reconstruction;
+            lo.transform.normalization = o.normalization == "none"        ? lighting::Normalization::kNone
+                                         : o.normalization == "local-sum" ? lighting::Normalization::kLocalSum
+                                                                          : lighting::Normalization::kPartition;
             lo.detect_peaks = peaks;
             lighting::LightingBuilder builder(lo);
             if (device == "gpu") gpu = std::make_unique<lighting::ResidualTransformGpu>(lo.transform);
@@ -358,6 +366,13 @@ CommandFn AddBenchLight(CLI::App* sub) {
   sub->add_flag("!--no-least-squares", o->least_squares, "Skip the least-squares optimum (slow)");
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
   sub->add_option("--sweeps", o->sweeps, "Projection passes per level of the transform")->check(CLI::Range(1, 16));
+  sub->add_option("--region-cutoff", o->region_cutoff, "An SRBF's cap: where its Gaussian exceeds this")
+      ->check(CLI::Range(1e-9, 0.4));
+  sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
+                "Evaluate every coarser level on each level's grid (default), or magnify the coarser grid's "
+                "reconstruction");
+  sub->add_option("--normalization", o->normalization, "Amplitude normalization of the transform")
+      ->check(CLI::IsMember({"none", "local-sum", "partition"}));
   sub->add_option("--base-width", o->base_width, "Working-grid width of level 0")->check(CLI::Range(8, 4096));
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchLight(*o); };

@@ -25,6 +25,7 @@ struct LightOptions {
   int sweeps = lighting::ResidualTransformOptions{}.sweeps;
   int base_width = lighting::ResidualTransformOptions{}.base_width;
   bool no_peaks = false;
+  bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
   std::string device = "cpu";
   std::string out;
   std::string preview;
@@ -45,6 +46,7 @@ int RunLight(const LightOptions& o) {
   options.transform.stop_threshold = o.threshold;
   options.transform.sweeps = o.sweeps;
   options.transform.base_width = o.base_width;
+  options.transform.exact_reconstruction = o.exact_reconstruction;
   options.detect_peaks = !o.no_peaks;
 
   // The GPU path needs a context for as long as the transform lives.
@@ -126,6 +128,9 @@ CommandFn AddLight(CLI::App* sub) {
       ->check(CLI::Range(1, 16));
   sub->add_option("--base-width", o->base_width, "Working-grid width of level 0, doubling per level")
       ->check(CLI::Range(8, 4096));
+  sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
+                "Evaluate every coarser level on each level's grid (default; closer to least squares), or magnify "
+                "the coarser grid's reconstruction (faster)");
   sub->add_flag("--no-peaks", o->no_peaks, "Do not take suns and lamps out as free-form SGs first");
   sub->add_option("--device", o->device, "Where the residual transform runs")->check(CLI::IsMember({"cpu", "gpu"}));
   sub->add_option("--out", o->out, "Write the lighting model (lighting.json)");

@@ -74,6 +74,18 @@ void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float s
   });
 }
 
+glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
+  glm::dvec3 sum(0);
+  for (int row = 0; row < image.height; ++row) {
+    const double da = sphere::EquirectPixelSolidAngle(row, image.width, image.height);
+    for (int col = 0; col < image.width; ++col) {
+      const float* p = image.at(col, row);
+      sum += da * glm::dvec3(p[0], p[1], p[2]);
+    }
+  }
+  return sum / (4 * sphere::kPi);
+}
+
 sphere::EquirectImage Subtract(const sphere::EquirectImage& a, const sphere::EquirectImage& b) {
   sphere::EquirectImage out = a;
   for (std::size_t i = 0; i < out.rgb.size(); ++i) out.rgb[i] -= b.rgb[i];
@@ -309,17 +321,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
   }
 
   // The constant term: the solid-angle-weighted mean (an SG with λ = 0).
-  if (options_.constant_term) {
-    glm::dvec3 sum(0);
-    for (int row = 0; row < finest.height; ++row) {
-      const double da = sphere::EquirectPixelSolidAngle(row, finest.width, finest.height);
-      for (int col = 0; col < finest.width; ++col) {
-        const float* p = finest.at(col, row);
-        sum += da * glm::dvec3(p[0], p[1], p[2]);
-      }
-    }
-    model.constant = glm::vec3(sum / (4 * sphere::kPi));
-  }
+  if (options_.constant_term) model.constant = glm::vec3(MeanOf(finest));
 
   // R: reconstruction of everything fitted so far, on the current level's grid.
   const auto [w0, h0] = GridOf(0, input.width, input.height);
@@ -330,6 +332,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     recon.rgb[i + 2] = model.constant.z;
   }
   std::vector<glm::vec3> previous_mu;
+  std::vector<std::vector<glm::vec3>> all_mu;
   int previous_level = -1;
   const float keep = static_cast<float>(options_.keep_threshold * report.mean_radiance);
 
@@ -337,10 +340,22 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     const auto level_start = Clock::now();
     const auto [w, h] = GridOf(s, input.width, input.height);
     if (s > 0) {
-      // R_{<s} on this grid: the coarser reconstruction magnified (it is smooth at this scale),
-      // plus the previous level evaluated exactly here.
-      recon = sphere::UpsampleBilinear(recon, w, h);
-      Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, &recon, pool_.get());
+      // R_{<s} on this grid: every coarser level evaluated here (their overlap lists on this
+      // grid are built once, like the level's own), or the coarser reconstruction magnified plus
+      // the previous level evaluated here (see exact_reconstruction).
+      if (options_.exact_reconstruction) {
+        recon = sphere::EquirectImage(w, h);
+        for (std::size_t i = 0; i < recon.rgb.size(); i += 3) {
+          recon.rgb[i] = model.constant.x;
+          recon.rgb[i + 1] = model.constant.y;
+          recon.rgb[i + 2] = model.constant.z;
+        }
+        for (std::size_t l = 0; l < all_mu.size(); ++l)
+          Reconstruct(Tables(static_cast<int>(l), w, h), all_mu[l], 1.0f, &recon, pool_.get());
+      } else {
+        recon = sphere::UpsampleBilinear(recon, w, h);
+        Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, &recon, pool_.get());
+      }
     }
     const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];
     sphere::EquirectImage residue = Subtract(target, recon);
@@ -408,6 +423,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
       level.amplitudes.push_back(mu[c]);
     }
     model.levels.push_back(std::move(level));
+    if (options_.exact_reconstruction) all_mu.push_back(mu);
     previous_mu = std::move(mu);
     previous_level = s;
     lr.ms = MsSince(level_start);
@@ -418,6 +434,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     }
   }
   if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
+
   report.total_ms = MsSince(start);
   if (report_out) *report_out = report;
   return model;

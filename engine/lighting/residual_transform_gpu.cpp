@@ -303,14 +303,22 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   for (int s = 0; s < levels; ++s) {
     const auto level_start = Clock::now();
     const Grid& grid = *grids_[static_cast<std::size_t>(s)];
-    // R_{<s} on this grid and the residue r_s = I_s − R_{<s}, in one pass over the pixels: at
-    // level 0 the constant; then the coarser reconstruction magnified plus the previous level
-    // evaluated exactly here.
+    // R_{<s} on this grid and the residue r_s = I_s − R_{<s}: at level 0 the constant; then every
+    // coarser level evaluated here, or (exact_reconstruction off) the coarser reconstruction
+    // magnified plus the previous level evaluated here.
     if (s == 0) {
       const float fill[4] = {model.constant.x, model.constant.y, model.constant.z, 0.f};
       glClearNamedBufferSubData(recon_[recon].id(), GL_RGBA32F, 0, grid.pixels() * kPixelBytes, GL_RGBA, GL_FLOAT,
                                 fill);
       Reconstruct(nullptr, mu_[mu], recon_[recon], recon_[recon], 1.f, grid, true, false);
+    } else if (options_.exact_reconstruction) {
+      // Every accepted coarser level evaluated on this grid, as the CPU path does.
+      const float fill[4] = {model.constant.x, model.constant.y, model.constant.z, 0.f};
+      glClearNamedBufferSubData(recon_[recon].id(), GL_RGBA32F, 0, grid.pixels() * kPixelBytes, GL_RGBA, GL_FLOAT,
+                                fill);
+      for (int l = 0; l < s; ++l)
+        Reconstruct(&TablesFor(l, grid.width, grid.height, false), level_mu_[static_cast<std::size_t>(l)],
+                    recon_[recon], recon_[recon], 1.f, grid, l == s - 1, false);
     } else {
       const Grid& coarser = *grids_[static_cast<std::size_t>(s) - 1];
       Bind(recon_[recon], 0);
@@ -382,6 +390,16 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
       level.amplitudes.push_back(m);
     }
     model.levels.push_back(std::move(level));
+    if (options_.exact_reconstruction) {
+      const std::size_t bytes = static_cast<std::size_t>(t.srbfs) * kPixelBytes;
+      if (level_mu_.size() <= static_cast<std::size_t>(s)) level_mu_.resize(static_cast<std::size_t>(s) + 1);
+      gl::Buffer& kept_mu = level_mu_[static_cast<std::size_t>(s)];
+      if (kept_mu.size() < bytes) {
+        kept_mu = gl::Buffer();
+        kept_mu.Allocate(bytes);
+      }
+      glCopyNamedBufferSubData(mu_[mu].id(), kept_mu.id(), 0, 0, static_cast<GLsizeiptr>(bytes));
+    }
     mu = 1 - mu;  // the accepted amplitudes stay on the GPU for the next level's reconstruction
     previous_level = s;
     lr.ms = MsSince(level_start);

@@ -5,9 +5,10 @@
 // work group per SRBF over its precomputed pixel list, a shared-memory reduction) and the
 // reconstruction with the residue update (one invocation per pixel over its SRBF list). The
 // frame is uploaded once (or read from a texture the caller already has), area-resampled to the
-// working grids and the coarser reconstruction magnified on the GPU; the CPU reads back only
-// the amplitudes and a few sums per level (mean |residue|, RMS, kept count) that its stop, keep
-// and rejection rules need. The overlap lists come from the CPU's BuildLevelTables, built once
+// working grids, and the coarser levels evaluated on each grid (or, with exact_reconstruction
+// off, their reconstruction magnified) on the GPU; the CPU reads back only the amplitudes and a
+// few sums per level (mean |residue|, RMS, kept count) that its stop, keep and rejection rules
+// need. The overlap lists come from the CPU's BuildLevelTables, built once
 // per grid size and kept on the GPU as storage buffers.
 #include <chrono>
 #include <map>
@@ -62,6 +63,7 @@ class ResidualTransformGpu {
   int grids_input_width_ = 0, grids_input_height_ = 0;
   // Scratch images (vec4 per pixel) sized for the finest grid, and the per-level state.
   gl::Buffer recon_[2], residue_, remaining_, row_sums_, totals_, flags_, counters_, mu_[2];
+  std::vector<gl::Buffer> level_mu_;  // exact reconstruction: every accepted level's amplitudes
   gl::Texture upload_{gl::NoCreate};  // the frame of Run(EquirectImage), reused while the size holds
 };
 

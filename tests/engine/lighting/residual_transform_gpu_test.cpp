@@ -86,6 +86,18 @@ TEST_F(ResidualTransformGpuGL, SunnySkyMatchesCpuWithEveryNormalization) {
   }
 }
 
+TEST_F(ResidualTransformGpuGL, MagnifiedReconstructionMatchesCpu) {
+  // The cheaper option: the coarser grid's reconstruction magnified, all levels kept.
+  ResidualTransformOptions o;
+  o.stop_threshold = 0;
+  o.exact_reconstruction = false;
+  ResidualTransform cpu(o);
+  TransformReport report;
+  cpu.Run(SunnySky(256, 128), &report);
+  ASSERT_EQ(report.levels.size(), 5u) << report.stop_reason;
+  ExpectGpuMatchesCpu(SunnySky(256, 128), o);
+}
+
 TEST_F(ResidualTransformGpuGL, AllLevelsAndOneSweepMatchCpu) {
   // No stop rule and no keep rule: every level of both paths, amplitudes compared one by one,
   // and the seed's single pass per level.

@@ -3,10 +3,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <string>
 
 #include "engine/core/error.h"
+#include "engine/image/image_io.h"
 #include "engine/lighting/lighting_errors.h"
+#include "engine/lighting/reference_fits.h"
 #include "engine/sphere/healpix.h"
+#include "engine/sphere/resample.h"
 #include "tests/engine/lighting/lighting_test_maps.h"
 
 namespace odvr::lighting {
@@ -77,6 +82,34 @@ TEST(ResidualTransform, NoErrorGrowsWhenALevelIsAddedEvenWithAnUntreatedSun) {
     previous = e;
   }
   EXPECT_LT(previous.diffuse, 0.02);
+}
+
+TEST(ResidualTransform, ExactReconstructionComesCloseToTheLeastSquaresOptimum) {
+  // Magnifying the coarser levels' reconstruction bilinearly leaves an error that each finer
+  // level fits and the model (evaluated exactly) does not contain; on a real map that bias held
+  // the diffuse and glossy-20 errors at 5-20x the optimum on the same basis. Evaluating every
+  // coarser level on the level's own grid removes it (issue 3: within 1.5x of the optimum).
+  const std::string path = std::string(ODVR_SHARED_DIR) + "/data/env/venice.exr";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent (the shared test data)";
+  // Halved (area-preserving) to keep the least-squares fit fast: level 3 still has its 2 px per σ.
+  const sphere::EquirectImage frame = sphere::ResampleArea(image::LoadImage(path), 256, 128);
+  LightingErrorEvaluator ev(frame);
+  const LightingErrors ls = ev.Evaluate(LeastSquaresSgFit(frame, 4));
+  ResidualTransformOptions o;
+  o.levels = 4;
+  o.stop_threshold = 0;
+  o.exact_reconstruction = false;
+  const LightingErrors magnified = ev.Evaluate(ResidualTransform(o).Run(frame));
+  o.exact_reconstruction = true;
+  const LightingErrors exact = ev.Evaluate(ResidualTransform(o).Run(frame));
+  SCOPED_TRACE("least squares " + std::to_string(ls.diffuse) + " " + std::to_string(ls.glossy20) + " " +
+               std::to_string(ls.glossy200) + ", magnified " + std::to_string(magnified.diffuse) + " " +
+               std::to_string(magnified.glossy20) + " " + std::to_string(magnified.glossy200));
+  EXPECT_LE(exact.diffuse, 1.5 * ls.diffuse);
+  EXPECT_LE(exact.glossy20, 1.5 * ls.glossy20);
+  EXPECT_LT(exact.diffuse, 0.5 * magnified.diffuse);
+  EXPECT_LT(exact.glossy20, 0.5 * magnified.glossy20);
+  EXPECT_LE(exact.glossy200, magnified.glossy200 * 1.02);
 }
 
 TEST(ResidualTransform, PartitionProjectionConservesEnergyAtEveryLevel) {
