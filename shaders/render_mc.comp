@@ -136,7 +136,8 @@ vec3 metallicRoughness(vec3 base, float metallic, float roughness, vec3 n, vec3 
   float ci = dot(n, wi), co = dot(n, wo);
   vec3 fresnel = schlick(f0, dot(wo, h));
   float g = 1.0 / (1.0 + smithLambda(true, alpha, ci) + smithLambda(true, alpha, co));
-  return (vec3(1.0) - fresnel) * base * (1.0 - metallic) / kLobePi + fresnel * (ggxD(alpha, dot(n, h)) * g / (4.0 * ci * co));
+  return base * ((1.0 - metallic) * principledDiffuseFactor(ci, co, dot(wi, wo), r) / kLobePi) +
+         fresnel * (ggxD(alpha, dot(n, h)) * g / (4.0 * ci * co));
 }
 
 vec3 evalTerm(int type, vec4 color, vec4 params, vec3 base, float metallic, float roughness, vec3 n, vec3 wi, vec3 wo) {

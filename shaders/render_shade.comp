@@ -160,12 +160,23 @@ ivec2 overlapRange(vec3 axis_world, float lambda) {
   return ivec2(binBegin[b], binBegin[b + 1]);
 }
 
+// The linear factor (1 + ℓ·wi) of the lobe being shaded (material::Lobe::linear; 0 but for the
+// principled diffuse's retro-reflection), integrated against a product SG: an SG's mean direction
+// is its axis times coth λ − 1/λ (material::LinearFactor).
+vec3 gLinear;
+
+float linearFactor(SgProduct p) {
+  if (gLinear == vec3(0.0)) return 1.0;
+  float m = p.lambda < 1e-3 ? p.lambda / 3.0 : 1.0 / tanh(p.lambda) - 1.0 / p.lambda;
+  return 1.0 + dot(gLinear, p.axis) * m;
+}
+
 // One lighting SG's contribution to a lobe: unshadowed ∫ G_lobe G_light (unit amplitudes) times
 // the visible share.
 void addLight(vec3 lobe_axis, float lobe_lambda, vec3 axis, float lambda, vec3 amplitude, in ConeSet set,
               inout vec3 shaded, inout vec3 unshadowed, inout uvec4 count) {
   SgProduct prod = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
-  float full = kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda);
+  float full = kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda) * linearFactor(prod);
   float share = 1.0;
   if (!set.all_visible) {
     share = visibleShare(prod, set);
@@ -202,8 +213,9 @@ const float kSharpPeakLambda = 50.0;
 
 float peakIntegral(vec3 lobe_axis, float lobe_lambda, bool cosine, vec3 axis, float lambda) {
   if (cosine && lambda >= kSharpPeakLambda)
-    return max(dot(lobe_axis, axis), 0.0) * sgIntegral(lambda) / kCosineSgAmplitude;
-  return sgIntegral2(lobe_axis, lobe_lambda, axis, lambda);
+    return max(dot(lobe_axis, axis), 0.0) * sgIntegral(lambda) / kCosineSgAmplitude * (1.0 + dot(gLinear, axis));
+  SgProduct p = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
+  return kTwoPi * exp(p.log_amplitude) * sgShape(p.lambda) * linearFactor(p);
 }
 
 void shadePeaks(vec3 lobe_axis, float lobe_lambda, bool cosine, in float peak_visibility[kMaxPeaks],
@@ -250,6 +262,7 @@ void main() {
   if (pixel.x >= uSize.x || pixel.y >= uSize.y) return;
   uint index = uint(pixel.y * uSize.x + pixel.x);
   gCount = uvec4(0);
+  gLinear = vec3(0.0);
   vec4 gp = imageLoad(uGPosition, pixel);
   vec4 car = vec4(0.0);
   vec4 shadow = vec4(1.0, 1.0, 1.0, 0.0);
@@ -269,7 +282,10 @@ void main() {
         vec3 axis, weight;
         float lambda;
         bool cosine;
-        if (termLobe(t, i, n, wo, axis, lambda, weight, cosine)) emitLobe(axis, lambda, weight, cosine);
+        if (termLobe(t, i, n, wo, axis, lambda, weight, cosine)) {
+          gLinear = cosine ? t.cosine_linear : vec3(0.0);
+          emitLobe(axis, lambda, weight, cosine);
+        }
       }
     }
     car = vec4(gRadiance, 1.0);
