@@ -53,6 +53,34 @@ uniform float uSurfaceOffset;  // metres along the normal where the car's cones 
 uniform int uGround;
 uniform vec2 uGroundCenter;  // xz
 uniform float uGroundHalfSize;
+uniform int uGroundShadowsBounce;  // RenderOptions::ground_shadows_bounce
+uniform float uGroundLitHalfAngle;
+
+uniform int uGroundPeakCount;
+uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
+uniform float uGroundPeakShare[8];
+
+// detail::GroundLitFraction: the ground's lit fraction at q for its broad light (one cone up) and
+// each traced peak (its own cone), weighted by their shares of the ground's irradiance.
+float groundLitFraction(vec3 q) {
+  float rest = 1.0, lit = 0.0;
+  for (int k = 0; k < 8; ++k) {
+    if (k >= uGroundPeakCount || uGroundPeakShare[k] <= 0.0) continue;
+    lit += uGroundPeakShare[k] * traceCone(q, uGroundPeakAxis[k].xyz, uGroundPeakAxis[k].w);
+    rest -= uGroundPeakShare[k];
+  }
+  return lit + max(rest, 0.0) * traceCone(q, vec3(0, 1, 0), uGroundLitHalfAngle);
+}
+
+// RenderOptions::ground_shadows_bounce: light from below the horizon stands for the ground's
+// bounce, which is darker where the car shadows the ground. A cone from p along dir meets the
+// ground at q; the lit fraction there is one cone straight up from q.
+float groundLit(vec3 p, vec3 dir) {
+  if (uGroundShadowsBounce == 0 || dir.y >= 0.0 || p.y <= 0.0) return 1.0;
+  vec3 q = p - (p.y / dir.y) * dir;
+  if (abs(q.x - uGroundCenter.x) > uGroundHalfSize || abs(q.z - uGroundCenter.y) > uGroundHalfSize) return 1.0;
+  return groundLitFraction(vec3(q.x, 0.0, q.z));
+}
 
 // Compile-time bounds, so that every loop over cones and peaks unrolls and their arrays stay in
 // registers: indexed by a loop variable, an array becomes a chain of selects on llvmpipe (70x
@@ -94,7 +122,7 @@ void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
     set.count = 1;
     set.axis[0] = axis;
     set.lambda = lambdaForHalfValueAngle(a);
-    set.visibility[0] = traceCone(p, axis, a);
+    set.visibility[0] = traceCone(p, axis, a) * groundLit(p, axis);
   } else {
     float cap = capHalfAngleHolding(lambda, uConeCoverage);
     float beta = min(cap / float(2 * CONE_RINGS + 1), uMaxConeHalfAngle);
@@ -112,7 +140,7 @@ void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
       }
     }
     set.lambda = lambdaForHalfValueAngle(beta);
-    for (int i = 0; i < kMaxCones; ++i) set.visibility[i] = traceCone(p, set.axis[i], beta);
+    for (int i = 0; i < kMaxCones; ++i) set.visibility[i] = traceCone(p, set.axis[i], beta) * groundLit(p, set.axis[i]);
   }
   set.all_visible = true;
   for (int i = 0; i < kMaxCones; ++i)

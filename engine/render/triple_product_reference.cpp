@@ -23,6 +23,20 @@ struct ConeSet {
   bool all_visible = true;
 };
 
+// render_shade.comp's groundLit: the ground's lit fraction where a cone from p along dir meets it.
+double GroundLit(const glm::dvec3& p, const glm::dvec3& dir, const ReferenceInputs& in) {
+  if (!in.options.ground || !in.options.ground_shadows_bounce || dir.y >= 0 || p.y <= 0) return 1.0;
+  const glm::dvec3 q = p - (p.y / dir.y) * dir;
+  if (std::abs(q.x - in.ground_centre.x) > in.options.ground_half_size ||
+      std::abs(q.z - in.ground_centre.y) > in.options.ground_half_size)
+    return 1.0;
+  return GroundLitFraction(
+      glm::dvec3(q.x, 0, q.z), *in.lighting, in.options.peak_cones, kGroundLitHalfAngle, visibility::kMaxConeHalfAngle,
+      [&](const glm::dvec3& o, const glm::dvec3& axis, double a) {
+        return in.grid->TraceCone({glm::vec3(o), glm::vec3(axis), static_cast<float>(a)}, in.options.trace);
+      });
+}
+
 ConeSet TraceLobeCones(const Sg& lobe, const glm::dvec3& p, const ReferenceInputs& in) {
   visibility::ConeSubsampleOptions co = in.options.cones;
   co.rings = in.options.cone_rings;
@@ -31,7 +45,8 @@ ConeSet TraceLobeCones(const Sg& lobe, const glm::dvec3& p, const ReferenceInput
   set.lambda = lighting::LambdaForHalfValueAngle(set.cones.front().half_angle);
   for (const auto& c : set.cones) {
     const double v = in.grid ? in.grid->TraceCone({glm::vec3(p), glm::vec3(c.axis), static_cast<float>(c.half_angle)},
-                                                  in.options.trace)
+                                                  in.options.trace) *
+                                   GroundLit(p, c.axis, in)
                              : 1.0;
     set.visibility.push_back(v);
     set.all_visible = set.all_visible && v >= 1.0;
