@@ -458,7 +458,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
        << " |\n";
   }
   md << Targets(rows);
-  md << "\nEvery row is in `render.tsv`; `render.png` plots mean_rel against shade ms.\n\n![error against time]"
+  md << "\nEvery row is in `render.tsv`; `render.png` plots mean_rel against shade ms. Where the error against "
+        "Cycles came from and what is left, measured term by term: `render_accuracy.md`.\n\n![error against time]"
         "(render.png)\n";
   WriteTextAtomically(fs::path(o.out_dir) / "render.md", md.str());
 
