@@ -42,7 +42,7 @@
 //   retro-reflection of rough surfaces brightens grazing views and light from behind the viewer.
 //   The Principled BSDF adds its specular layer on top of the diffuse one, without the glTF
 //   spec's (1 − F) on the diffuse: measured against Cycles, a Lambertian (1 − F) diffuse was
-//   9–12 % dark on the diffuse paints (docs/benchmarks/render.md). The lobes: the Lambertian
+//   9–12 % dark on the diffuse paints (docs/benchmarks/render_accuracy.md). The lobes: the Lambertian
 //   lobe weighted by f_d's directional albedo at wo (PrincipledDiffuseAlbedo), its retro-reflection
 //   at grazing views FV r (1 + wi·wo) kept exactly as the lobe's linear factor (Lobe::linear;
 //   the FL terms, light at grazing incidence, enter the albedo only), plus the GGX lobe.
