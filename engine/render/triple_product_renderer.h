@@ -94,7 +94,8 @@ struct RenderOptions {
   double ground_half_size = 30;  // metres around the model's centre (Cycles' 60 m catcher)
   // Light from below the horizon stands for the ground's bounce (see above); the car's shadow
   // darkens that bounce. A cone whose axis meets the ground within the catcher has its visibility
-  // scaled by the ground's lit fraction there: one cone straight up of kGroundLitHalfAngle.
+  // scaled by the ground's lit fraction there: one cone straight up of kGroundLitHalfAngle for
+  // the broad light, each traced peak's own cone for its share (detail::GroundLitFraction).
   // Cycles' catcher is shadowed where the car sees it: rendered with the unshadowed stand-in
   // instead, studio_glossy lands 31 % (mean relative) off its reference, 8 % with the shadow
   // (docs/benchmarks/render_accuracy.md).
