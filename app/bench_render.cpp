@@ -80,8 +80,8 @@ glm::dvec3 Vec3(const nlohmann::json& j) {
 // Cycles' scene has the catcher under the car: seen from the car, everything below the horizon
 // is that plane, diffuse albedo 0.18 (references.json), lit by the map's upper half. Both
 // renderers here light from the map's lower half, so the map's lower half becomes that plane's
-// radiance, 0.18 E / π, E the horizontal irradiance from the upper half (the car's own shadow on
-// the plane, which Cycles does see, is left out).
+// radiance, 0.18 E / π, E the horizontal irradiance from the upper half; the car's own shadow on
+// the plane, which Cycles does see, the renderers add (RenderOptions::ground_shadows_bounce).
 void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo) {
   const int w = env->width, h = env->height;
   glm::dvec3 e(0);
@@ -458,7 +458,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
        << " |\n";
   }
   md << Targets(rows);
-  md << "\nEvery row is in `render.tsv`; `render.png` plots mean_rel against shade ms.\n\n![error against time]"
+  md << "\nEvery row is in `render.tsv`; `render.png` plots mean_rel against shade ms. Where the error against "
+        "Cycles came from and what is left, measured term by term: `render_accuracy.md`.\n\n![error against time]"
         "(render.png)\n";
   WriteTextAtomically(fs::path(o.out_dir) / "render.md", md.str());
 

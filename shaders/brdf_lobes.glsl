@@ -70,6 +70,23 @@ float smithLambda(bool ggx, float alpha, float cos_theta) {
   return (1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a);
 }
 
+// Cycles' principled diffuse (Burley 2015) relative to 1/π, and its directional albedo
+// (material::PrincipledDiffuseFactor / PrincipledDiffuseAlbedo derive them).
+float principledDiffuseFactor(float cos_i, float cos_o, float cos_io, float roughness) {
+  float a = clamp(1.0 - cos_i, 0.0, 1.0), b = clamp(1.0 - cos_o, 0.0, 1.0);
+  float fl = a * a * a * a * a, fv = b * b * b * b * b;
+  float rr = clamp(roughness, 0.0, 1.0) * (1.0 + cos_io);
+  return (1.0 - 0.5 * fl) * (1.0 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1.0));
+}
+
+float principledDiffuseAlbedo(float cos_o, float roughness) {
+  float mu = clamp(cos_o, 0.0, 1.0), r = clamp(roughness, 0.0, 1.0);
+  float b = 1.0 - mu;
+  float fv = b * b * b * b * b;
+  return (1.0 - 0.5 * fv) * (41.0 / 42.0) + fv * r * (1.0 + 2.0 * mu / 3.0) + r * (1.0 - fv) * (1.0 / 21.0 + mu / 84.0) +
+         fv * r * r * (1.0 / 21.0 + mu / 42.0 + (11.0 - 9.0 * mu * mu) / 504.0);
+}
+
 // RenderOptions::lobes (material::LobeOptions): 1 = WarpMode::kAnisotropicSplit,
 // 1 = CosineTerm::kAsSg.
 uniform int uWarpSplit;
@@ -107,6 +124,7 @@ struct TermLobes {
   int count;            // lobes, the dropped ones included
   bool has_cosine;      // lobe 0 is the clamped-cosine lobe
   vec3 cosine_weight;
+  vec3 cosine_linear;   // its linear factor (material::Lobe::linear)
   int kind;             // -1: none; kMConstant, kMCookTorrance, kMWard: a warped lobe; 3: Phong
   vec3 color;           // M's colour parameter (Phong: its weight)
   float alpha, amplitude;
@@ -160,6 +178,7 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
   TermLobes t;
   t.count = 0;
   t.has_cosine = false;
+  t.cosine_linear = vec3(0.0);
   t.kind = -1;
   if (type == kBrdfGltf || type == kBrdfMetallicRoughness) {
     if (type == kBrdfMetallicRoughness) {
@@ -172,7 +191,14 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
     float r = clamp(roughness, 0.0, 1.0);
     vec3 f0 = mix(vec3(0.04), base, metallic);
     t.has_cosine = true;
-    t.cosine_weight = (vec3(1.0) - schlick(f0, dot(n, wo))) * base * (1.0 - metallic) / kLobePi;
+    // material::LobesOf(MetallicRoughness): the retro-reflection FV r (1 + wi·wo) as the lobe's
+    // linear factor, a0 keeping the directional albedo.
+    float mu = dot(n, wo);
+    float b = 1.0 - clamp(mu, 0.0, 1.0);
+    float a1 = b * b * b * b * b * r;
+    float a0 = principledDiffuseAlbedo(mu, r) - a1 * 2.0 * mu / 3.0;
+    t.cosine_weight = base * ((1.0 - metallic) * a0 / kLobePi);
+    t.cosine_linear = (a1 / a0) * wo;
     t.count = 1;
     float alpha = clamp(r * r, kMinAlpha, 1.0);
     describeWarped(t, ndfSgLambda(alpha), 1.0 / (kLobePi * alpha * alpha), kMCookTorrance, f0, alpha, true, n, wo);

@@ -45,6 +45,31 @@ uniform float uSurfaceOffset;
 uniform int uGround;
 uniform vec2 uGroundCenter;
 uniform float uGroundHalfSize;
+uniform int uGroundShadowsBounce;  // render_shade.comp's groundLit
+uniform float uGroundLitHalfAngle;
+
+uniform int uGroundPeakCount;
+uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
+uniform float uGroundPeakShare[8];
+
+// detail::GroundLitFraction: the ground's lit fraction at q for its broad light (one cone up) and
+// each traced peak (its own cone), weighted by their shares of the ground's irradiance.
+float groundLitFraction(vec3 q) {
+  float rest = 1.0, lit = 0.0;
+  for (int k = 0; k < 8; ++k) {
+    if (k >= uGroundPeakCount || uGroundPeakShare[k] <= 0.0) continue;
+    lit += uGroundPeakShare[k] * traceCone(q, uGroundPeakAxis[k].xyz, uGroundPeakAxis[k].w);
+    rest -= uGroundPeakShare[k];
+  }
+  return lit + max(rest, 0.0) * traceCone(q, vec3(0, 1, 0), uGroundLitHalfAngle);
+}
+
+float groundLit(vec3 p, vec3 dir) {
+  if (uGroundShadowsBounce == 0 || dir.y >= 0.0 || p.y <= 0.0) return 1.0;
+  vec3 q = p - (p.y / dir.y) * dir;
+  if (abs(q.x - uGroundCenter.x) > uGroundHalfSize || abs(q.z - uGroundCenter.y) > uGroundHalfSize) return 1.0;
+  return groundLitFraction(vec3(q.x, 0.0, q.z));
+}
 uniform int uSamples;
 uniform uint uSeed;
 uniform float uShadowRayHalfAngle;
@@ -136,7 +161,8 @@ vec3 metallicRoughness(vec3 base, float metallic, float roughness, vec3 n, vec3 
   float ci = dot(n, wi), co = dot(n, wo);
   vec3 fresnel = schlick(f0, dot(wo, h));
   float g = 1.0 / (1.0 + smithLambda(true, alpha, ci) + smithLambda(true, alpha, co));
-  return (vec3(1.0) - fresnel) * base * (1.0 - metallic) / kLobePi + fresnel * (ggxD(alpha, dot(n, h)) * g / (4.0 * ci * co));
+  return base * ((1.0 - metallic) * principledDiffuseFactor(ci, co, dot(wi, wo), r) / kLobePi) +
+         fresnel * (ggxD(alpha, dot(n, h)) * g / (4.0 * ci * co));
 }
 
 vec3 evalTerm(int type, vec4 color, vec4 params, vec3 base, float metallic, float roughness, vec3 n, vec3 wi, vec3 wo) {
@@ -238,7 +264,7 @@ void main() {
       }
       vec3 value = f * envRadiance(wi) * (cos_i / pdf);
       if (value == vec3(0.0)) continue;
-      sum += value * traceCone(origin, wi, uShadowRayHalfAngle);
+      sum += value * (traceCone(origin, wi, uShadowRayHalfAngle) * groundLit(origin, wi));
       count.y += 1u;
     }
     car = vec4(sum / float(max(uSamples, 1)), 1.0);

@@ -53,6 +53,34 @@ uniform float uSurfaceOffset;  // metres along the normal where the car's cones 
 uniform int uGround;
 uniform vec2 uGroundCenter;  // xz
 uniform float uGroundHalfSize;
+uniform int uGroundShadowsBounce;  // RenderOptions::ground_shadows_bounce
+uniform float uGroundLitHalfAngle;
+
+uniform int uGroundPeakCount;
+uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
+uniform float uGroundPeakShare[8];
+
+// detail::GroundLitFraction: the ground's lit fraction at q for its broad light (one cone up) and
+// each traced peak (its own cone), weighted by their shares of the ground's irradiance.
+float groundLitFraction(vec3 q) {
+  float rest = 1.0, lit = 0.0;
+  for (int k = 0; k < 8; ++k) {
+    if (k >= uGroundPeakCount || uGroundPeakShare[k] <= 0.0) continue;
+    lit += uGroundPeakShare[k] * traceCone(q, uGroundPeakAxis[k].xyz, uGroundPeakAxis[k].w);
+    rest -= uGroundPeakShare[k];
+  }
+  return lit + max(rest, 0.0) * traceCone(q, vec3(0, 1, 0), uGroundLitHalfAngle);
+}
+
+// RenderOptions::ground_shadows_bounce: light from below the horizon stands for the ground's
+// bounce, which is darker where the car shadows the ground. A cone from p along dir meets the
+// ground at q; the lit fraction there is one cone straight up from q.
+float groundLit(vec3 p, vec3 dir) {
+  if (uGroundShadowsBounce == 0 || dir.y >= 0.0 || p.y <= 0.0) return 1.0;
+  vec3 q = p - (p.y / dir.y) * dir;
+  if (abs(q.x - uGroundCenter.x) > uGroundHalfSize || abs(q.z - uGroundCenter.y) > uGroundHalfSize) return 1.0;
+  return groundLitFraction(vec3(q.x, 0.0, q.z));
+}
 
 // Compile-time bounds, so that every loop over cones and peaks unrolls and their arrays stay in
 // registers: indexed by a loop variable, an array becomes a chain of selects on llvmpipe (70x
@@ -94,7 +122,7 @@ void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
     set.count = 1;
     set.axis[0] = axis;
     set.lambda = lambdaForHalfValueAngle(a);
-    set.visibility[0] = traceCone(p, axis, a);
+    set.visibility[0] = traceCone(p, axis, a) * groundLit(p, axis);
   } else {
     float cap = capHalfAngleHolding(lambda, uConeCoverage);
     float beta = min(cap / float(2 * CONE_RINGS + 1), uMaxConeHalfAngle);
@@ -112,7 +140,7 @@ void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
       }
     }
     set.lambda = lambdaForHalfValueAngle(beta);
-    for (int i = 0; i < kMaxCones; ++i) set.visibility[i] = traceCone(p, set.axis[i], beta);
+    for (int i = 0; i < kMaxCones; ++i) set.visibility[i] = traceCone(p, set.axis[i], beta) * groundLit(p, set.axis[i]);
   }
   set.all_visible = true;
   for (int i = 0; i < kMaxCones; ++i)
@@ -160,12 +188,23 @@ ivec2 overlapRange(vec3 axis_world, float lambda) {
   return ivec2(binBegin[b], binBegin[b + 1]);
 }
 
+// The linear factor (1 + ℓ·wi) of the lobe being shaded (material::Lobe::linear; 0 but for the
+// principled diffuse's retro-reflection), integrated against a product SG: an SG's mean direction
+// is its axis times coth λ − 1/λ (material::LinearFactor).
+vec3 gLinear;
+
+float linearFactor(SgProduct p) {
+  if (gLinear == vec3(0.0)) return 1.0;
+  float m = p.lambda < 1e-3 ? p.lambda / 3.0 : 1.0 / tanh(p.lambda) - 1.0 / p.lambda;
+  return 1.0 + dot(gLinear, p.axis) * m;
+}
+
 // One lighting SG's contribution to a lobe: unshadowed ∫ G_lobe G_light (unit amplitudes) times
 // the visible share.
 void addLight(vec3 lobe_axis, float lobe_lambda, vec3 axis, float lambda, vec3 amplitude, in ConeSet set,
               inout vec3 shaded, inout vec3 unshadowed, inout uvec4 count) {
   SgProduct prod = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
-  float full = kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda);
+  float full = kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda) * linearFactor(prod);
   float share = 1.0;
   if (!set.all_visible) {
     share = visibleShare(prod, set);
@@ -202,8 +241,9 @@ const float kSharpPeakLambda = 50.0;
 
 float peakIntegral(vec3 lobe_axis, float lobe_lambda, bool cosine, vec3 axis, float lambda) {
   if (cosine && lambda >= kSharpPeakLambda)
-    return max(dot(lobe_axis, axis), 0.0) * sgIntegral(lambda) / kCosineSgAmplitude;
-  return sgIntegral2(lobe_axis, lobe_lambda, axis, lambda);
+    return max(dot(lobe_axis, axis), 0.0) * sgIntegral(lambda) / kCosineSgAmplitude * (1.0 + dot(gLinear, axis));
+  SgProduct p = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
+  return kTwoPi * exp(p.log_amplitude) * sgShape(p.lambda) * linearFactor(p);
 }
 
 void shadePeaks(vec3 lobe_axis, float lobe_lambda, bool cosine, in float peak_visibility[kMaxPeaks],
@@ -250,6 +290,7 @@ void main() {
   if (pixel.x >= uSize.x || pixel.y >= uSize.y) return;
   uint index = uint(pixel.y * uSize.x + pixel.x);
   gCount = uvec4(0);
+  gLinear = vec3(0.0);
   vec4 gp = imageLoad(uGPosition, pixel);
   vec4 car = vec4(0.0);
   vec4 shadow = vec4(1.0, 1.0, 1.0, 0.0);
@@ -269,7 +310,10 @@ void main() {
         vec3 axis, weight;
         float lambda;
         bool cosine;
-        if (termLobe(t, i, n, wo, axis, lambda, weight, cosine)) emitLobe(axis, lambda, weight, cosine);
+        if (termLobe(t, i, n, wo, axis, lambda, weight, cosine)) {
+          gLinear = cosine ? t.cosine_linear : vec3(0.0);
+          emitLobe(axis, lambda, weight, cosine);
+        }
       }
     }
     car = vec4(gRadiance, 1.0);

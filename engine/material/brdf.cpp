@@ -61,14 +61,14 @@ double ClampAlpha(double alpha) { return std::clamp(alpha, kMinAlpha, 1.0); }
 
 struct MrParams {
   glm::dvec3 f0, c_diff;
-  double alpha;
+  double alpha, roughness;
 };
 
 MrParams FromMetallicRoughness(const MetallicRoughness& m) {
   const double metallic = std::clamp(m.metallic, 0.0, 1.0);
   const glm::dvec3 base = glm::clamp(m.base_color, 0.0, 1.0);
   const double r = std::clamp(m.roughness, 0.0, 1.0);
-  return {glm::mix(glm::dvec3(0.04), base, metallic), base * (1.0 - metallic), ClampAlpha(r * r)};
+  return {glm::mix(glm::dvec3(0.04), base, metallic), base * (1.0 - metallic), ClampAlpha(r * r), r};
 }
 
 // --- Analytic BRDFs (wo already bent, n·wi > 0) --------------------------------------------------
@@ -115,7 +115,8 @@ glm::dvec3 Analytic(const MetallicRoughness& m, const ShadingFrame& f, const glm
   const glm::dvec3 fresnel = Schlick(p.f0, glm::dot(wo, h));
   const double d = NdfValue(Ndf::kGgx, p.alpha, glm::dot(f.n, h));
   const double g = SmithG(Ndf::kGgx, p.alpha, cos_i, cos_o);
-  return (glm::dvec3(1.0) - fresnel) * p.c_diff / kPi + fresnel * (d * g / (4.0 * cos_i * cos_o));
+  const double diffuse = PrincipledDiffuseFactor(cos_i, cos_o, glm::dot(wi, wo), p.roughness);
+  return p.c_diff * (diffuse / kPi) + fresnel * (d * g / (4.0 * cos_i * cos_o));
 }
 
 // --- Lobes ---------------------------------------------------------------------------------------
@@ -239,12 +240,36 @@ void LobesOf(const CookTorrance& m, const ShadingFrame& f, const glm::dvec3& wo,
 void LobesOf(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
              std::vector<Lobe>* out) {
   const MrParams p = FromMetallicRoughness(m);
-  const glm::dvec3 diffuse = (glm::dvec3(1.0) - Schlick(p.f0, glm::dot(f.n, wo))) * p.c_diff / kPi;
-  if (diffuse.x > 0 || diffuse.y > 0 || diffuse.z > 0) out->push_back({CosineSg(f.n), diffuse});
+  // f_d's retro-reflection at grazing views, FV r (1 + wi·wo), is linear in wi: the Lambertian
+  // lobe carries it as (a0 + a1 wo·wi) with a1 = FV r, and a0 keeps the directional albedo.
+  const double mu = glm::dot(f.n, wo);
+  const double a1 = std::pow(1.0 - std::clamp(mu, 0.0, 1.0), 5.0) * p.roughness;
+  const double a0 = PrincipledDiffuseAlbedo(mu, p.roughness) - a1 * 2.0 * mu / 3.0;
+  const glm::dvec3 diffuse = p.c_diff * (a0 / kPi);
+  if (diffuse.x > 0 || diffuse.y > 0 || diffuse.z > 0) out->push_back({CosineSg(f.n), diffuse, (a1 / a0) * wo});
   PushCookTorrance(p.f0, p.alpha, Ndf::kGgx, f, wo, o, out);
 }
 
 }  // namespace
+
+double PrincipledDiffuseFactor(double cos_i, double cos_o, double cos_io, double roughness) {
+  const double fl = std::pow(std::clamp(1.0 - cos_i, 0.0, 1.0), 5.0);
+  const double fv = std::pow(std::clamp(1.0 - cos_o, 0.0, 1.0), 5.0);
+  const double rr = std::clamp(roughness, 0.0, 1.0) * (1.0 + cos_io);
+  return (1.0 - 0.5 * fl) * (1.0 - 0.5 * fv) + rr * (fl + fv + fl * fv * (rr - 1.0));
+}
+
+// With x = wi·wo, μ = n·wo and the hemisphere's moments (1/π)∫ FL c = 1/21, (1/π)∫ FL c² = 1/84,
+// (1/π)∫ FL c³ = 1/252, (1/π)∫ c wi = (2/3) n, (1/π)∫ FL c wi wiᵀ = n nᵀ/252 + (11/504)(I − n nᵀ):
+//   (1/π)∫ (1 + x) c = 1 + 2μ/3,  (1/π)∫ (1 + x) FL c = 1/21 + μ/84,
+//   (1/π)∫ (1 + x)² FL c = 1/21 + μ/42 + (11 − 9μ²)/504.
+double PrincipledDiffuseAlbedo(double cos_o, double roughness) {
+  const double mu = std::clamp(cos_o, 0.0, 1.0), r = std::clamp(roughness, 0.0, 1.0);
+  const double fv = std::pow(1.0 - mu, 5.0);
+  return (1.0 - 0.5 * fv) * (1.0 - 1.0 / 42.0) + fv * r * (1.0 + 2.0 * mu / 3.0) +
+         r * (1.0 - fv) * (1.0 / 21.0 + mu / 84.0) +
+         fv * r * r * (1.0 / 21.0 + mu / 42.0 + (11.0 - 9.0 * mu * mu) / 504.0);
+}
 
 ShadingFrame ShadingFrame::FromNormal(const glm::dvec3& n, const glm::dvec3& tangent_hint) {
   ShadingFrame f;
@@ -307,13 +332,22 @@ std::vector<Lobe> Lobes(const Brdf& brdf, const ShadingFrame& frame, const glm::
   return lobes;
 }
 
+double SgMeanCosine(double lambda) { return lambda < 1e-3 ? lambda / 3.0 : 1.0 / std::tanh(lambda) - 1.0 / lambda; }
+
+double LinearFactor(const glm::dvec3& linear, const Sg& product) {
+  if (linear == glm::dvec3(0)) return 1.0;
+  return 1.0 + glm::dot(linear, product.axis) * SgMeanCosine(product.lambda);
+}
+
 glm::dvec3 ShadeUnderSgLight(std::span<const Lobe> lobes, const lighting::RgbSg& light, const Sg* visibility) {
   const Sg l{light.axis, light.lambda, 1.0};
   glm::dvec3 sum(0);
   for (const Lobe& lobe : lobes) {
     const double i =
         visibility ? lighting::IntegralOfProduct(lobe.sg, l, *visibility) : lighting::IntegralOfProduct(lobe.sg, l);
-    sum += lobe.weight * i;
+    Sg product = lighting::Product(lobe.sg, l);
+    if (visibility) product = lighting::Product(product, *visibility);
+    sum += lobe.weight * (i * LinearFactor(lobe.linear, product));
   }
   return sum * glm::dvec3(light.amplitude);
 }

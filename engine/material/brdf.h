@@ -33,9 +33,19 @@
 //   2π μ ∫₀¹ e^{λ(x−1)} x dx = 1: the SG has D's peak value and D's normalisation over the
 //   hemisphere. λ(α) → 2/α² − 1 as α → 0, and λ(1) = 0 (GGX at α = 1 *is* the constant 1/π).
 //   F is Schlick's, G the height-correlated Smith term 1/(1 + Λ(wi) + Λ(wo)) of the chosen NDF.
-// - glTF metallic-roughness (glTF 2.0 spec, appendix B): α = roughness² clamped to ≥ kMinAlpha,
-//   F0 = mix(0.04, base, metallic), c_diff = base (1 − metallic); f = (1 − F(wo·h)) c_diff/π +
-//   D F V with GGX. The lobes: the Lambertian lobe scaled by (1 − F) at h = n, plus the GGX lobe.
+// - glTF metallic-roughness, as Blender's glTF importer makes it: a Principled BSDF (v1, Blender
+//   3.4, specular 0.5), the material our Cycles references and street_a's were rendered with.
+//   α = roughness² clamped to ≥ kMinAlpha, F0 = mix(0.04, base, metallic), c_diff = base
+//   (1 − metallic); f = c_diff f_d + D F G/(4 (n·wi)(n·wo)) with GGX and Schlick's F(wi·h).
+//   f_d is Cycles' principled diffuse (Burley 2015): (1/π)[(1 − FL/2)(1 − FV/2) + RR (FL + FV +
+//   FL FV (RR − 1))], FL = (1 − n·wi)⁵, FV = (1 − n·wo)⁵, RR = roughness (1 + wi·wo): the
+//   retro-reflection of rough surfaces brightens grazing views and light from behind the viewer.
+//   The Principled BSDF adds its specular layer on top of the diffuse one, without the glTF
+//   spec's (1 − F) on the diffuse: measured against Cycles, a Lambertian (1 − F) diffuse was
+//   9–12 % dark on the diffuse paints (docs/benchmarks/render_accuracy.md). The lobes: the Lambertian
+//   lobe weighted by f_d's directional albedo at wo (PrincipledDiffuseAlbedo), its retro-reflection
+//   at grazing views FV r (1 + wi·wo) kept exactly as the lobe's linear factor (Lobe::linear;
+//   the FL terms, light at grazing incidence, enter the albedo only), plus the GGX lobe.
 //
 // What that costs (brdf_test.cpp prints the table; SG light λ 10–1000, views 0–75°, error against
 // quadrature): with a light aimed at the mirror direction 0.03 % (Phong n = 10⁴) to ~50 % (GGX,
@@ -112,10 +122,13 @@ struct MetallicRoughness {
 
 using Brdf = std::variant<Lambertian, Phong, BlinnPhong, Ward, CookTorrance, MetallicRoughness>;
 
-// One term of the lobe sum: weight ⊙ G(wi; sg).
+// One term of the lobe sum: weight ⊙ G(wi; sg) (1 + linear·wi). The linear factor's integral
+// against an SG light is exact: ∫ P (1 + ℓ·wi) = ∫P (1 + ℓ·c_P SgMeanCosine(λ_P)) for the product
+// P of lobe and light (axis c_P, λ_P), since an SG's mean direction is c (coth λ − 1/λ).
 struct Lobe {
   lighting::Sg sg;
   glm::dvec3 weight{1};
+  glm::dvec3 linear{0};
 };
 
 enum class CosineTerm { kAtLobeAxis, kAsSg };
@@ -157,5 +170,15 @@ double NdfSgLambda(double alpha);
 lighting::Sg WarpToIncident(const lighting::Sg& half_vector_lobe, const glm::dvec3& wo);
 // The clamped cosine around n as an SG.
 lighting::Sg CosineSg(const glm::dvec3& n);
+// coth λ − 1/λ: the mean of c·w under an SG of axis c and sharpness λ.
+double SgMeanCosine(double lambda);
+// 1 + linear·(the product's mean direction): a lobe's linear factor integrated against `product`.
+double LinearFactor(const glm::dvec3& linear, const lighting::Sg& product);
+// Cycles' principled diffuse (Burley 2015) relative to Lambert's 1/π: f_d π for n·wi, n·wo and
+// wi·wo at roughness r (perceptual, in [0, 1]).
+double PrincipledDiffuseFactor(double cos_i, double cos_o, double cos_io, double roughness);
+// Its directional albedo (1/π) ∫ PrincipledDiffuseFactor (n·wi) dwi over the hemisphere, in closed
+// form: 1 for a Lambertian surface; 1.04 for r = 1 at normal view, 1.25 at 78° from the normal.
+double PrincipledDiffuseAlbedo(double cos_o, double roughness);
 
 }  // namespace odvr::material

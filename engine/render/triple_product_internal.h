@@ -1,6 +1,7 @@
 #pragma once
 // Internals shared by the GPU path (triple_product_renderer.cpp) and the CPU reference
 // (triple_product_reference.cpp) of TripleProductRenderer. Not part of the engine's API.
+#include <algorithm>
 #include <glm/mat3x3.hpp>
 #include <glm/vec2.hpp>
 #include <memory>
@@ -13,13 +14,36 @@ namespace odvr::render::detail {
 
 // The lighting as the shading stage reads it: SRBFs by global index (lighting/overlap_bins.h),
 // amplitude 0 where the model kept none, axes already rotated into the world.
+// Half-value angle of an SG (π when it never falls to 1/2), as render_shade.comp computes it.
+double HalfValueAngle(double lambda);
+
 struct PreparedLighting {
   glm::vec3 constant{0};
   std::vector<lighting::RgbSg> srbfs;
   std::vector<lighting::RgbSg> peaks;  // brightest first; the first kMaxPeakCones get cones
   glm::dmat3 env_from_world{1.0};
   int sg_count = 0;
+  // The ground's irradiance shares of the peaks that get cones (RenderOptions::
+  // ground_shadows_bounce): ΣE over the channels, the rest lights the ground through one cone up.
+  std::vector<double> ground_peak_share;
 };
+
+// The ground's lit fraction at q (y = 0) for the bounce the car sees there: the up cone for the
+// broad light and each traced peak's own cone, weighted by their shares of the ground's irradiance.
+// `trace(origin, axis, half_angle)` is the cone tracer.
+template <class Trace>
+double GroundLitFraction(const glm::dvec3& q, const PreparedLighting& l, bool peak_cones, double up_half_angle,
+                         double max_half_angle, const Trace& trace) {
+  double rest = 1.0, lit = 0.0;
+  for (std::size_t k = 0; peak_cones && k < l.ground_peak_share.size(); ++k) {
+    const double share = l.ground_peak_share[k];
+    if (share <= 0) continue;
+    const double a = std::min(HalfValueAngle(l.peaks[k].lambda), max_half_angle);
+    lit += share * trace(q, l.peaks[k].axis, a);
+    rest -= share;
+  }
+  return lit + std::max(rest, 0.0) * trace(q, glm::dvec3(0, 1, 0), up_half_angle);
+}
 
 // Per material: the BRDF terms of an override, or empty for the glTF metallic-roughness that the
 // G-buffer holds.
@@ -52,8 +76,5 @@ struct ReferenceInputs {
 // The shading stage on the CPU (multithreaded): fills result->car, car_alpha, shadow,
 // ground_mask and `counts` (one per pixel).
 void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector<PixelCounts>* counts);
-
-// Half-value angle of an SG (π when it never falls to 1/2), as render_shade.comp computes it.
-double HalfValueAngle(double lambda);
 
 }  // namespace odvr::render::detail

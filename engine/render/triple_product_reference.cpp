@@ -23,6 +23,20 @@ struct ConeSet {
   bool all_visible = true;
 };
 
+// render_shade.comp's groundLit: the ground's lit fraction where a cone from p along dir meets it.
+double GroundLit(const glm::dvec3& p, const glm::dvec3& dir, const ReferenceInputs& in) {
+  if (!in.options.ground || !in.options.ground_shadows_bounce || dir.y >= 0 || p.y <= 0) return 1.0;
+  const glm::dvec3 q = p - (p.y / dir.y) * dir;
+  if (std::abs(q.x - in.ground_centre.x) > in.options.ground_half_size ||
+      std::abs(q.z - in.ground_centre.y) > in.options.ground_half_size)
+    return 1.0;
+  return GroundLitFraction(
+      glm::dvec3(q.x, 0, q.z), *in.lighting, in.options.peak_cones, kGroundLitHalfAngle, visibility::kMaxConeHalfAngle,
+      [&](const glm::dvec3& o, const glm::dvec3& axis, double a) {
+        return in.grid->TraceCone({glm::vec3(o), glm::vec3(axis), static_cast<float>(a)}, in.options.trace);
+      });
+}
+
 ConeSet TraceLobeCones(const Sg& lobe, const glm::dvec3& p, const ReferenceInputs& in) {
   visibility::ConeSubsampleOptions co = in.options.cones;
   co.rings = in.options.cone_rings;
@@ -31,7 +45,8 @@ ConeSet TraceLobeCones(const Sg& lobe, const glm::dvec3& p, const ReferenceInput
   set.lambda = lighting::LambdaForHalfValueAngle(set.cones.front().half_angle);
   for (const auto& c : set.cones) {
     const double v = in.grid ? in.grid->TraceCone({glm::vec3(p), glm::vec3(c.axis), static_cast<float>(c.half_angle)},
-                                                  in.options.trace)
+                                                  in.options.trace) *
+                                   GroundLit(p, c.axis, in)
                              : 1.0;
     set.visibility.push_back(v);
     set.all_visible = set.all_visible && v >= 1.0;
@@ -72,10 +87,10 @@ double VisibleShare(const Sg& product, const ConeSet& set) {
   return den > 0 ? num / den : set.visibility.front();
 }
 
-void AddLight(const Sg& lobe, const lighting::RgbSg& light, const ConeSet& set, glm::dvec3* shaded,
-              glm::dvec3* unshadowed, PixelCounts* count) {
+void AddLight(const Sg& lobe, const glm::dvec3& linear, const lighting::RgbSg& light, const ConeSet& set,
+              glm::dvec3* shaded, glm::dvec3* unshadowed, PixelCounts* count) {
   const Sg l{light.axis, light.lambda, 1.0};
-  const double full = lighting::IntegralOfProduct(lobe, l);
+  const double full = lighting::IntegralOfProduct(lobe, l) * material::LinearFactor(linear, lighting::Product(lobe, l));
   double share = 1;
   if (!set.all_visible) {
     const LogProduct prod = ProductLog(lobe.axis, lobe.lambda, l.axis, l.lambda);
@@ -87,35 +102,37 @@ void AddLight(const Sg& lobe, const lighting::RgbSg& light, const ConeSet& set, 
   count->sgs += 1;
 }
 
-void ShadeLobe(const Sg& lobe, const ConeSet& set, const ReferenceInputs& in, glm::dvec3* shaded,
-               glm::dvec3* unshadowed, PixelCounts* count) {
+void ShadeLobe(const Sg& lobe, const glm::dvec3& linear, const ConeSet& set, const ReferenceInputs& in,
+               glm::dvec3* shaded, glm::dvec3* unshadowed, PixelCounts* count) {
   const PreparedLighting& L = *in.lighting;
-  if (L.constant != glm::vec3(0)) AddLight(lobe, {{0, 1, 0}, 0.0, L.constant}, set, shaded, unshadowed, count);
+  if (L.constant != glm::vec3(0)) AddLight(lobe, linear, {{0, 1, 0}, 0.0, L.constant}, set, shaded, unshadowed, count);
   if (in.bins && !L.srbfs.empty()) {
     for (int g : in.bins->Query(L.env_from_world * lobe.axis, lobe.lambda)) {
       const auto& s = L.srbfs[static_cast<std::size_t>(g)];
       if (s.amplitude == glm::vec3(0)) continue;
-      AddLight(lobe, s, set, shaded, unshadowed, count);
+      AddLight(lobe, linear, s, set, shaded, unshadowed, count);
     }
   }
   const std::size_t first = in.options.peak_cones ? TripleProductRenderer::kMaxPeakCones : 0;
-  for (std::size_t k = first; k < L.peaks.size(); ++k) AddLight(lobe, L.peaks[k], set, shaded, unshadowed, count);
+  for (std::size_t k = first; k < L.peaks.size(); ++k)
+    AddLight(lobe, linear, L.peaks[k], set, shaded, unshadowed, count);
 }
 
 // render_shade.comp's peakIntegral: a sharp peak meets the clamped-cosine lobe as a directional
 // light against the exact cosine.
 constexpr double kSharpPeakLambda = 50;
 
-void ShadePeaks(const Sg& lobe, bool cosine, const std::vector<double>& peak_visibility, const ReferenceInputs& in,
-                glm::dvec3* shaded, glm::dvec3* unshadowed) {
+void ShadePeaks(const Sg& lobe, const glm::dvec3& linear, bool cosine, const std::vector<double>& peak_visibility,
+                const ReferenceInputs& in, glm::dvec3* shaded, glm::dvec3* unshadowed) {
   if (!in.options.peak_cones) return;
   const auto& peaks = in.lighting->peaks;
   for (std::size_t k = 0; k < std::min<std::size_t>(peaks.size(), TripleProductRenderer::kMaxPeakCones); ++k) {
     const Sg peak{peaks[k].axis, peaks[k].lambda, 1.0};
+    const bool sharp = cosine && peak.lambda >= kSharpPeakLambda;
     const double full =
-        cosine && peak.lambda >= kSharpPeakLambda
-            ? std::max(glm::dot(lobe.axis, peak.axis), 0.0) * lighting::Integral(peak) / material::kCosineSgAmplitude
-            : lighting::IntegralOfProduct(lobe, peak);
+        sharp ? std::max(glm::dot(lobe.axis, peak.axis), 0.0) * lighting::Integral(peak) /
+                    material::kCosineSgAmplitude * (1.0 + glm::dot(linear, peak.axis))
+              : lighting::IntegralOfProduct(lobe, peak) * material::LinearFactor(linear, lighting::Product(lobe, peak));
     *shaded += glm::dvec3(peaks[k].amplitude) * (full * peak_visibility[k]);
     *unshadowed += glm::dvec3(peaks[k].amplitude) * full;
   }
@@ -187,10 +204,10 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
               const Sg unit{lobe.sg.axis, lobe.sg.lambda, 1.0};
               const ConeSet set = TraceLobeCones(unit, origin, in);
               glm::dvec3 shaded(0), unshadowed(0);
-              ShadeLobe(unit, set, in, &shaded, &unshadowed, &count);
+              ShadeLobe(unit, lobe.linear, set, in, &shaded, &unshadowed, &count);
               const bool cosine =
                   lobe.sg.lambda == material::kCosineSgLambda && lobe.sg.amplitude == material::kCosineSgAmplitude;
-              ShadePeaks(unit, cosine, peak_v, in, &shaded, &unshadowed);
+              ShadePeaks(unit, lobe.linear, cosine, peak_v, in, &shaded, &unshadowed);
               radiance += lobe.weight * lobe.sg.amplitude * shaded;
               count.lobes += 1;
               count.cones += static_cast<unsigned>(set.cones.size());
@@ -214,8 +231,8 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
             for (double v : peak_v) lit = lit && v >= 1.0;
             if (lit) continue;
             glm::dvec3 shaded(0), unshadowed(0);
-            ShadeLobe(up, set, in, &shaded, &unshadowed, &count);
-            ShadePeaks(up, true, peak_v, in, &shaded, &unshadowed);
+            ShadeLobe(up, glm::dvec3(0), set, in, &shaded, &unshadowed, &count);
+            ShadePeaks(up, glm::dvec3(0), true, peak_v, in, &shaded, &unshadowed);
             count.lobes += 1;
             for (int c = 0; c < 3; ++c)
               result->shadow.rgb[3 * idx + c] =

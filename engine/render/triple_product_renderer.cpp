@@ -189,7 +189,41 @@ detail::PreparedLighting Prepare(const lighting::SgLighting& model, const glm::d
     p.peaks.push_back(pk);
   }
   p.sg_count += static_cast<int>(p.peaks.size());
+  // The ground's irradiance (channels summed): the traced peaks' shares of it.
+  const lighting::Sg cosine = material::CosineSg(glm::dvec3(0, 1, 0));
+  const auto sum = [](const glm::vec3& a) { return static_cast<double>(a.x + a.y + a.z); };
+  double total = sum(p.constant) * lighting::Integral(cosine);
+  for (const auto& s : p.srbfs)
+    if (s.amplitude != glm::vec3(0))
+      total += sum(s.amplitude) * lighting::IntegralOfProduct(cosine, {s.axis, s.lambda, 1.0});
+  std::vector<double> peak_e;
+  for (std::size_t k = 0; k < p.peaks.size(); ++k) {
+    const auto& pk = p.peaks[k];
+    const double e = sum(pk.amplitude) * lighting::Integral({pk.axis, pk.lambda, 1.0}) * std::max(pk.axis.y, 0.0);
+    total += e;
+    if (k < TripleProductRenderer::kMaxPeakCones) peak_e.push_back(e);
+  }
+  for (double e : peak_e) p.ground_peak_share.push_back(total > 0 ? e / total : 0.0);
   return p;
+}
+
+// The traced peaks for the ground's lit fraction (detail::GroundLitFraction): axis and cone
+// half-angle, and share of the ground's irradiance; none without peak cones.
+void SetGroundPeakUniforms(gl::Program& p, const detail::PreparedLighting& l, bool peak_cones) {
+  std::vector<float> axes, shares;
+  const std::size_t n = peak_cones ? l.ground_peak_share.size() : 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto& pk = l.peaks[k];
+    axes.insert(axes.end(),
+                {static_cast<float>(pk.axis.x), static_cast<float>(pk.axis.y), static_cast<float>(pk.axis.z),
+                 static_cast<float>(std::min(detail::HalfValueAngle(pk.lambda), visibility::kMaxConeHalfAngle))});
+    shares.push_back(static_cast<float>(l.ground_peak_share[k]));
+  }
+  p.Set("uGroundPeakCount", static_cast<int>(n));
+  if (n > 0) {
+    glProgramUniform4fv(p.id(), p.Uniform("uGroundPeakAxis"), static_cast<GLsizei>(n), axes.data());
+    glProgramUniform1fv(p.id(), p.Uniform("uGroundPeakShare"), static_cast<GLsizei>(n), shares.data());
+  }
 }
 
 glm::vec4 LightVec(const glm::dvec3& a, double l) { return glm::vec4(glm::vec3(a), static_cast<float>(l)); }
@@ -788,7 +822,10 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uWarpSplit", options_.lobes.warp == material::WarpMode::kAnisotropicSplit ? 1 : 0)
         .Set("uCosineAsSg", options_.lobes.cosine == material::CosineTerm::kAsSg ? 1 : 0)
         .Set("uGroundCenter", static_cast<float>(ground_centre.x), static_cast<float>(ground_centre.y))
-        .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size));
+        .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
+        .Set("uGroundShadowsBounce", options_.ground && options_.ground_shadows_bounce ? 1 : 0)
+        .Set("uGroundLitHalfAngle", static_cast<float>(kGroundLitHalfAngle));
+    SetGroundPeakUniforms(sp, im.lighting, options_.peak_cones);
     SetConeTraceUniforms(sp, im.spec, geometry, options_.trace);
     if (geometry) glBindTextureUnit(0, im.voxelizer->texture().id());
     im.g_position.BindImage(0, GL_READ_ONLY);
@@ -820,9 +857,12 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
           .Set("uGround", options_.ground ? 1 : 0)
           .Set("uGroundCenter", static_cast<float>(ground_centre.x), static_cast<float>(ground_centre.y))
           .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
+          .Set("uGroundShadowsBounce", options_.ground && options_.ground_shadows_bounce ? 1 : 0)
+          .Set("uGroundLitHalfAngle", static_cast<float>(kGroundLitHalfAngle))
           .Set("uSamples", options_.monte_carlo_samples)
           // A ray of a voxel's width: level 0 all along (cone_trace.glsl clamps the diameter).
           .Set("uShadowRayHalfAngle", 1e-4f);
+      SetGroundPeakUniforms(mp, im.lighting, options_.peak_cones);
       SetConeTraceUniforms(mp, im.spec, geometry, options_.trace);
       im.mc_environment.BindUnit(1);
       im.env_row_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 8);

@@ -25,7 +25,8 @@ Conventions (odvr's, DESIGN.md and engine/sphere/equirect.h):
   --env-yaw-deg a turns the map about +Y by a (counter-clockwise seen from above): what the map
   holds at longitude lon lights the scene from longitude lon + a. --env-rotation gives the full
   world_from_env 3x3 matrix (row-major, odvr frame) instead.
-  Negative pixels (lossy EXR compression leaves some near bright sources) are clamped to 0.
+  Negative pixels (lossy EXR compression leaves some near bright sources) are clamped to 0 in the
+  image, before the texture lookup interpolates.
 * Camera: pinhole at --camera px,py,pz,tx,ty,tz,vfov_deg (odvr frame), image up = +Y projected,
   principal point at the image centre, square pixels; OpenCV intrinsics
   fx = fy = (H/2) / tan(vfov/2), cx = (W-1)/2, cy = (H-1)/2 (pixel centres at integers).
@@ -170,16 +171,11 @@ def setup_world(scene):
     env = nt.nodes.new("ShaderNodeTexEnvironment")
     env.projection = "EQUIRECTANGULAR"
     env.interpolation = "Linear"
-    clamp = nt.nodes.new("ShaderNodeMixRGB")
-    clamp.blend_type = "LIGHTEN"  # max(c, 0) per channel: lossy EXRs hold negative pixels
-    clamp.inputs["Fac"].default_value = 1.0
-    clamp.inputs["Color2"].default_value = (0, 0, 0, 1)
     bg = nt.nodes.new("ShaderNodeBackground")
     out = nt.nodes.new("ShaderNodeOutputWorld")
     nt.links.new(tc.outputs["Generated"], mp.inputs["Vector"])
     nt.links.new(mp.outputs["Vector"], env.inputs["Vector"])
-    nt.links.new(env.outputs["Color"], clamp.inputs["Color1"])
-    nt.links.new(clamp.outputs["Color"], bg.inputs["Color"])
+    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
     nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
     world.cycles.sampling_method = "MANUAL"
     world.cycles.sample_map_resolution = 1024
@@ -200,20 +196,35 @@ def world_from_env_odvr(yaw_deg=0.0, rotation=None):
     return Matrix(((c, 0, s), (0, 1, 0), (-s, 0, c)))  # about +Y: +X turns towards -Z (left)
 
 
-def set_env(env_node, mapping, bg, path, R_odvr, strength):
+def set_env(env_node, mapping, bg, path, R_odvr, strength, scene, tmpdir):
     img = bpy.data.images.load(os.path.abspath(path), check_existing=True)
     img.colorspace_settings.name = "Linear"
+    w, h = img.size
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
+    rgb = px.reshape(-1, 4)[:, :3]
+    info = {"size": [w, h], "negative_pixels": int((rgb < 0).any(axis=1).sum()), "min": float(rgb.min()),
+            "max": float(rgb.max())}
+    # Negative pixels are clamped in the map itself, before the texture lookup interpolates: a
+    # clamp after the lookup (what this script did before) lets a bright sun's texels blend with
+    # their negative neighbours, which took 9 % off sky.exr's light on the car. odvr clamps the
+    # pixels the same way (image::SanitizePixels). The clamped copy goes through a file: pixels
+    # written into the loaded image in memory did not render as written (4 % dark, measured).
+    if info["negative_pixels"]:
+        clamped = np.maximum(px.reshape(h, w, 4), 0.0)
+        clamped[:, :, 3] = 1.0
+        copy = os.path.join(tmpdir + "_env", "clamped_" + os.path.splitext(os.path.basename(path))[0] + ".exr")
+        os.makedirs(os.path.dirname(copy), exist_ok=True)
+        write_exr(scene, clamped[::-1], copy, "RGB", depth="32")
+        img = bpy.data.images.load(copy, check_existing=False)
+        img.colorspace_settings.name = "Linear"
     env_node.image = img
     # The map is looked up at env_from_world @ d_world; in Blender's frame that is P R^T P^T.
     Rb = P_BLENDER_FROM_ODVR @ R_odvr @ P_BLENDER_FROM_ODVR.transposed()
     lookup = Rb.transposed()
     mapping.inputs["Rotation"].default_value = lookup.to_euler("XYZ")
     bg.inputs["Strength"].default_value = strength
-    px = np.empty(img.size[0] * img.size[1] * 4, np.float32)
-    img.pixels.foreach_get(px)
-    px = px.reshape(-1, 4)[:, :3]
-    return {"size": list(img.size), "negative_pixels": int((px < 0).any(axis=1).sum()), "min": float(px.min()),
-            "max": float(px.max())}
+    return info
 
 
 def import_model(path):
@@ -358,14 +369,14 @@ def read_exr(path):
     return a.reshape(h, w, 4)[::-1].copy()
 
 
-def write_exr(scene, arr, path, channels):
-    """Top-down HxWx4 (premultiplied) array to a half-float ZIP EXR with `channels` RGB or RGBA."""
+def write_exr(scene, arr, path, channels, depth="16"):
+    """Top-down HxWx4 (premultiplied) array to a ZIP EXR (half float, or "32") with `channels` RGB or RGBA."""
     h, w = arr.shape[:2]
     img = bpy.data.images.new("_out", w, h, alpha=True, float_buffer=True)
     img.alpha_mode = "PREMUL"
     img.pixels.foreach_set(np.ascontiguousarray(arr[::-1]).ravel())
     s = scene.render.image_settings
-    s.file_format, s.color_depth, s.exr_codec, s.color_mode = "OPEN_EXR", "16", "ZIP", channels
+    s.file_format, s.color_depth, s.exr_codec, s.color_mode = "OPEN_EXR", depth, "ZIP", channels
     img.save_render(path, scene=scene)
     bpy.data.images.remove(img)
 
@@ -429,7 +440,7 @@ class Renderer:
         setup_compositor(self.scene, self.tmpdir)
 
     def render(self, out_prefix, env, R_odvr, strength, camera, w, h, spp, seeds, material):
-        env_info = set_env(self.env_node, self.mapping, self.bg, env, R_odvr, strength)
+        env_info = set_env(self.env_node, self.mapping, self.bg, env, R_odvr, strength, self.scene, self.tmpdir)
         cam_info = set_camera(self.scene, self.cam, camera, w, h)
         if self.switch:
             self.switch.set(material)

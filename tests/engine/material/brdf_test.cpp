@@ -195,10 +195,36 @@ TEST(Brdf, CookTorranceSgShadingMatchesQuadrature) {
        {"Cook-Torrance Beckmann m=0.4", CookTorrance{glm::dvec3(0.9), 0.4, Ndf::kBeckmann}, 0.34, 0.61, 1.15}});
 }
 
+// The rough paint's bounds are the principled diffuse's: its grazing-light terms (FL, Burley's
+// darkening and retro-reflection for light near the horizon) reach the lobe only through the
+// directional albedo, so a sharp light at 75° off the normal sees them averaged (35 % aimed).
 TEST(Brdf, MetallicRoughnessSgShadingMatchesQuadrature) {
   MeasureModels({{"glTF paint r=0.4 m=0", MetallicRoughness{glm::dvec3(0.6, 0.1, 0.1), 0.0, 0.4}, 0.54, 0.66, 2.65},
                  {"glTF metal r=0.3 m=1", MetallicRoughness{glm::dvec3(0.9, 0.8, 0.6), 1.0, 0.3}, 0.49, 1.0, 1.97},
-                 {"glTF rough r=0.9 m=0", MetallicRoughness{glm::dvec3(0.5), 0.0, 0.9}, 0.25, 0.18, 0.83}});
+                 {"glTF rough r=0.9 m=0", MetallicRoughness{glm::dvec3(0.5), 0.0, 0.9}, 0.36, 0.20, 1.05}});
+}
+
+// The closed-form directional albedo of the principled diffuse against quadrature of the factor
+// itself, over views and roughnesses; and the factor's own limits: Lambert (1) at normal view
+// and light, Burley's f_d90 = 1/2 + 2 r cos²θ_d at grazing light and view.
+TEST(Brdf, PrincipledDiffuseAlbedoMatchesQuadrature) {
+  const ShadingFrame fr = ShadingFrame::FromNormal(glm::dvec3(0, 1, 0));
+  for (double r : {0.0, 0.4, 1.0}) {
+    for (double view_deg : {0.0, 30.0, 60.0, 78.0, 89.0}) {
+      const glm::dvec3 wo = ViewAt(fr, view_deg);
+      const double cos_o = glm::dot(fr.n, wo);
+      const glm::dvec3 q = PoleQuadrature(
+          [&](const glm::dvec3& wi) {
+            const double c = glm::dot(fr.n, wi);
+            return glm::dvec3(c > 0 ? PrincipledDiffuseFactor(c, cos_o, glm::dot(wi, wo), r) * c : 0.0);
+          },
+          fr.n, 400, 400);
+      EXPECT_NEAR(PrincipledDiffuseAlbedo(cos_o, r), q.x / kPi, 2e-3) << "r " << r << " view " << view_deg;
+    }
+  }
+  EXPECT_DOUBLE_EQ(PrincipledDiffuseFactor(1, 1, 1, 1.0), 1.0);
+  EXPECT_NEAR(PrincipledDiffuseFactor(0, 0, -1, 0.7), 0.25, 1e-12);  // fd90 = 1/2 at θ_d = 90°, squared
+  EXPECT_NEAR(PrincipledDiffuseFactor(0, 0, 1, 0.7), (0.5 + 2 * 0.7) * (0.5 + 2 * 0.7), 1e-12);
 }
 
 // Hard case: a mirror-like Phong lobe (λ = 10⁴) under a light as sharp (λ sums to 2·10⁴), from

@@ -2,7 +2,8 @@
 // - the GPU shading pass against the CPU reference on the same G-buffer (96×64);
 // - a furnace: a Lambertian sphere under a constant environment reads albedo × radiance times
 //   the integral of brdf.h's clamped-cosine SG over the sphere (3.395 instead of π, +8.1 %);
-// - the shadow catcher: darker under the car than far from it, absent without the car;
+// - the shadow catcher: darker under the car than far from it, absent without the car; and the
+//   car's shadow on it darkening the ground's bounce that the car sees;
 // - more lighting levels and more cones move the result towards the converged one;
 // - the hard cases: Phong n = 10⁴, a car inside a peak's cone, zero-area triangles and
 //   degenerate normals, an empty scene, a model far larger than the voxel volume, every
@@ -370,6 +371,53 @@ TEST_F(TripleProductRendererGL, ShadowUnderTheCarAndNoneWithoutIt) {
   EXPECT_EQ(max_bg, 0.0);
   EXPECT_TRUE(AllFinite(none.background));
   EXPECT_GT(*std::min_element(none.background.rgb.begin(), none.background.rgb.end()), 0.09f);
+}
+
+// RenderOptions::ground_shadows_bounce: light from below the horizon (the ground's bounce) is
+// darkened where the car shadows the ground. A box floating 0.3 m up under a constant light from
+// every direction: its faces that see the ground under and beside it get less with the term
+// than without (the underside most), the GPU agrees with the CPU reference, and a light with
+// nothing below the horizon is not touched by it.
+TEST_F(TripleProductRendererGL, CarSeesItsShadowOnTheGround) {
+  scene::GltfScene car;
+  car.materials = {Pbr("body", {0.5f, 0.5f, 0.5f}, 0.f, 0.9f)};
+  car.primitives.push_back(BoxPrimitive({-1.0f, 0.3f, -0.5f}, {1.0f, 1.2f, 0.5f}, 0));
+  odvr::testing::Finish(&car);
+  const PinholeCamera cam = PinholeCamera::LookAt({-2.5, 0.2, 3.0}, {0, 0.6, 0}, 45, kW, kH);
+  lighting::SgLighting everywhere;
+  everywhere.constant = glm::vec3(1.f);
+  const auto mean_car = [](const RenderResult& r) {
+    double sum = 0;
+    int n = 0;
+    for (std::size_t i = 0; i < r.car_alpha.size(); ++i)
+      if (r.car_alpha[i] > 0.5f) sum += Luma(&r.car.rgb[3 * i]), ++n;
+    return n > 0 ? sum / n : 0.0;
+  };
+  RenderOptions on;
+  on.voxel_resolution = 64;
+  RenderOptions off = on;
+  off.ground_shadows_bounce = false;
+  TripleProductRenderer r_on(car, glm::dmat4(1.0), on), r_off(car, glm::dmat4(1.0), off);
+  r_on.SetLighting(everywhere);
+  r_off.SetLighting(everywhere);
+  const RenderResult gpu = r_on.Render(cam, ShadeDevice::kGpu), cpu = r_on.Render(cam, ShadeDevice::kCpu);
+  const RenderResult without = r_off.Render(cam, ShadeDevice::kGpu);
+  ASSERT_GT(gpu.counts.car_pixels, 300);
+  const Diff d = Compare(gpu.car, cpu.car, gpu.car_alpha);
+  std::printf("ground's shadow in its bounce: car mean %.4f with, %.4f without; GPU vs CPU mean %.4f p99 %.4f rel\n",
+              mean_car(gpu), mean_car(without), d.mean_rel, d.p99_rel);
+  EXPECT_LT(mean_car(gpu), 0.99 * mean_car(without));  // measured 2.9 % darker
+  EXPECT_LT(d.mean_rel, 0.01);
+  EXPECT_LT(d.p99_rel, 0.05);
+
+  // Nothing below the horizon: the term changes nothing.
+  lighting::SgLighting above;
+  above.peaks.push_back({glm::normalize(glm::dvec3(0.3, 1, 0.2)), 200.0, glm::vec3(5.f)});
+  r_on.SetLighting(above);
+  r_off.SetLighting(above);
+  const Diff same =
+      Compare(r_on.Render(cam, ShadeDevice::kGpu).car, r_off.Render(cam, ShadeDevice::kGpu).car, gpu.car_alpha);
+  EXPECT_LT(same.max_rel, 1e-5);
 }
 
 TEST_F(TripleProductRendererGL, MoreLevelsAndMoreConesConverge) {
