@@ -2,8 +2,6 @@
 // in a window driven by WASD/arrows or headless to PNG frames with a scripted drive.
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
-#include <backends/imgui_impl_glfw.h>
-#include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
 
 #include <algorithm>
@@ -14,8 +12,6 @@
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "app/augmented_scene.h"
 #include "app/bench_common.h"
@@ -23,7 +19,6 @@
 #include "app/player.h"
 #include "app/view_controller.h"
 #include "app/window_input.h"
-#include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
 #include "engine/gl/objects.h"
@@ -211,11 +206,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
   if (!o.resize.empty()) resize = ParseResize(o.resize);
   glfwSwapInterval(0);  // the frame takes what it takes; vsync would only add to it
 
-  IMGUI_CHECKVERSION();
-  ImGui::CreateContext();
-  ImGui::GetIO().IniFilename = nullptr;
-  ImGui_ImplGlfw_InitForOpenGL(w, true);
-  ImGui_ImplOpenGL3_Init("#version 450");
+  ImGuiSession imgui(w);
   WindowInput input(w);
 
   PlayerReport report;
@@ -226,9 +217,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
   look.Set({o.view.yaw_deg, o.view.pitch_deg, o.view.fov_deg});
   bool draw_car = true, show_overlay = true, paused = false, ready = false, resized = false;
   int shots = 0;
-  gl::Texture shown{gl::NoCreate};
-  gl::Framebuffer read_fbo;
-  int shown_w = 0, shown_h = 0;
+  FramePresenter presenter;
   const auto start = Clock::now();
   auto previous = start;
   double drive_t = 0;  // the script's clock: it stops while paused
@@ -277,19 +266,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
       frame = scene.Render(rw, rh, view, dt);
       all.push_back(Timings(frame));
       report.frames.push_back(Record(frame));
-      const auto srgb = ToSrgb8(frame.image);
-      if (shown_w != rw || shown_h != rh) {
-        shown = gl::Texture::Create2D(GL_RGBA8, rw, rh);
-        read_fbo.AttachColor(shown);
-        shown_w = rw;
-        shown_h = rh;
-      }
-      glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-      shown.Upload2D(GL_RGB, GL_UNSIGNED_BYTE, srgb.data());
-      glBindFramebuffer(GL_FRAMEBUFFER, 0);
-      glViewport(0, 0, fb_w, fb_h);
-      // Rows were uploaded top first; the window's y grows upward: flip in the blit.
-      glBlitNamedFramebuffer(read_fbo.id(), 0, 0, 0, rw, rh, 0, fb_h, fb_w, 0, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+      presenter.Show(ToSrgb8(frame.image), rw, rh, fb_w, fb_h);
 
       overlay = {Printf("frame %d (light %d)   car %.1f km/h%s", frame.view_frame, frame.light_frame,
                         scene.car().state().speed_mps * 3.6, paused ? "  (paused)" : ""),
@@ -299,9 +276,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
                         frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0, look.state().yaw_deg, look.state().pitch_deg,
                         look.state().fov_deg),
                  "WASD drive, drag look, wheel zoom, space pause, C car, F1 panel, F12 shot"};
-      ImGui_ImplOpenGL3_NewFrame();
-      ImGui_ImplGlfw_NewFrame();
-      ImGui::NewFrame();
+      imgui.NewFrame();
       if (show_overlay) {
         ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
         ImGui::SetNextWindowBgAlpha(0.6f);
@@ -314,8 +289,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
         panel_widgets["overlay_min"] = {static_cast<int>(at.x), static_cast<int>(at.y)};
         panel_widgets["overlay_max"] = {static_cast<int>(at.x + size.x), static_cast<int>(at.y + size.y)};
       }
-      ImGui::Render();
-      ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+      imgui.Render();
     }
     ++report.frames_shown;
     if (resize.first > 0 && !resized && t > 0.5 * o.quit_after_s) {
@@ -367,9 +341,6 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
     }
     if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
   }
-  ImGui_ImplOpenGL3_Shutdown();
-  ImGui_ImplGlfw_Shutdown();
-  ImGui::DestroyContext();
   Medians(all, &report);
   return report;
 }

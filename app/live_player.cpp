@@ -4,8 +4,6 @@
 #include "app/live_player.h"
 
 #include <GLFW/glfw3.h>
-#include <backends/imgui_impl_glfw.h>
-#include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
 
 #include <algorithm>
@@ -15,12 +13,11 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "app/bench_common.h"
 #include "app/commands.h"
-#include "engine/core/atomic_file.h"
+#include "app/view_controller.h"
+#include "app/window_input.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
 #include "engine/gl/objects.h"
@@ -150,31 +147,16 @@ LiveReport RunLiveWindow(const LivePlayOptions& o) {
   const auto script = p.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(p.drive);
   glfwSwapInterval(0);  // the cameras pace the loop
 
-  IMGUI_CHECKVERSION();
-  ImGui::CreateContext();
-  ImGui::GetIO().IniFilename = nullptr;
-  ImGui_ImplGlfw_InitForOpenGL(w, true);
-  ImGui_ImplOpenGL3_Init("#version 450");
-  double scroll = 0;
-  glfwSetWindowUserPointer(w, &scroll);
-  glfwSetScrollCallback(w, [](GLFWwindow* win, double dx, double dy) {
-    ImGui_ImplGlfw_ScrollCallback(win, dx, dy);
-    if (!ImGui::GetIO().WantCaptureMouse) *static_cast<double*>(glfwGetWindowUserPointer(win)) += dy;
-  });
-  glfwSetKeyCallback(w, [](GLFWwindow* win, int key, int scancode, int action, int mods) {
-    ImGui_ImplGlfw_KeyCallback(win, key, scancode, action, mods);
-    if (action == GLFW_PRESS && (key == GLFW_KEY_ESCAPE || key == GLFW_KEY_Q)) glfwSetWindowShouldClose(win, GLFW_TRUE);
-  });
+  ImGuiSession imgui(w);
+  WindowInput input(w);
 
   LiveReport report;
   report.mode = "window";
   std::vector<LiveTimings> all;
-  AugmentedView view{p.view.yaw_deg, p.view.pitch_deg, std::clamp(p.view.fov_deg, 30.0, 150.0), true};
-  gl::Texture shown{gl::NoCreate};
-  gl::Framebuffer read_fbo;
-  int shown_w = 0, shown_h = 0;
-  double last_x = 0, last_y = 0;
-  bool dragging = false;
+  // The same free look as the other players, as an offset from looking at the car.
+  ViewController look;
+  look.Set({p.view.yaw_deg, p.view.pitch_deg, p.view.fov_deg});
+  FramePresenter presenter;
   const auto start = Clock::now();
   auto previous = start;
   LiveFrame frame;
@@ -184,57 +166,37 @@ LiveReport RunLiveWindow(const LivePlayOptions& o) {
     const double dt = std::chrono::duration<double>(now - previous).count();
     const double t = std::chrono::duration<double>(now - start).count();
     previous = now;
-    const bool keys_free = !ImGui::GetIO().WantCaptureKeyboard;
+    const bool keys_free = !ImGui::GetIO().WantTextInput;
     auto held = [&](int a, int b) {
       return keys_free && (glfwGetKey(w, a) == GLFW_PRESS || glfwGetKey(w, b) == GLFW_PRESS);
     };
-    CarInput input = DriveInputAt(script, t);
-    input.forward |= held(GLFW_KEY_W, GLFW_KEY_UP);
-    input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
-    input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
-    input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
-    scene.Drive(input, dt);
+    CarInput car_input = DriveInputAt(script, t);
+    car_input.forward |= held(GLFW_KEY_W, GLFW_KEY_UP);
+    car_input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
+    car_input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
+    car_input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
+    scene.Drive(car_input, dt);
 
     int fb_w = 0, fb_h = 0;
     glfwGetFramebufferSize(w, &fb_w, &fb_h);
-    double x, y;
-    glfwGetCursorPos(w, &x, &y);
-    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS && (dragging || !ImGui::GetIO().WantCaptureMouse)) {
-      if (dragging && fb_h > 0) {  // a drag across the window's height turns by the field of view
-        view.yaw_deg -= (x - last_x) * view.vfov_deg / fb_h;
-        view.pitch_deg = std::clamp(view.pitch_deg + (y - last_y) * view.vfov_deg / fb_h, -90.0, 90.0);
-      }
-      dragging = true;
-    } else {
-      dragging = false;
+    const WindowInput::Events in = input.Take();
+    look.Drag(in.drag_dx, in.drag_dy, std::max(fb_h, 1));
+    look.Scroll(in.scroll);
+    for (const int key : in.keys) {
+      if (key == GLFW_KEY_EQUAL || key == GLFW_KEY_KP_ADD) look.Scroll(1);
+      if (key == GLFW_KEY_MINUS || key == GLFW_KEY_KP_SUBTRACT) look.Scroll(-1);
     }
-    last_x = x;
-    last_y = y;
-    view.vfov_deg = std::clamp(view.vfov_deg * std::pow(0.95, std::exchange(scroll, 0.0)), 30.0, 150.0);
 
     if (fb_w > 0 && fb_h > 0) {
       const int rw = std::max(fb_w, 16), rh = std::max(fb_h, 16);
+      const AugmentedView view{look.state().yaw_deg, look.state().pitch_deg, look.state().fov_deg, true};
       frame = scene.Render(rw, rh, view);
       for (auto& m : scene.TakeMessages()) report.messages.push_back(std::move(m));
       all.push_back(frame.ms);
       report.frames.push_back(Record(frame));
-      const auto srgb = ToSrgb8(frame.image);
-      if (shown_w != rw || shown_h != rh) {
-        shown = gl::Texture::Create2D(GL_RGBA8, rw, rh);
-        read_fbo.AttachColor(shown);
-        shown_w = rw;
-        shown_h = rh;
-      }
-      glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-      shown.Upload2D(GL_RGB, GL_UNSIGNED_BYTE, srgb.data());
-      glBindFramebuffer(GL_FRAMEBUFFER, 0);
-      glViewport(0, 0, fb_w, fb_h);
-      // Rows were uploaded top first; the window's y grows upward: flip in the blit.
-      glBlitNamedFramebuffer(read_fbo.id(), 0, 0, 0, rw, rh, 0, fb_h, fb_w, 0, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+      presenter.Show(ToSrgb8(frame.image), rw, rh, fb_w, fb_h);
 
-      ImGui_ImplOpenGL3_NewFrame();
-      ImGui_ImplGlfw_NewFrame();
-      ImGui::NewFrame();
+      imgui.NewFrame();
       ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
       ImGui::SetNextWindowBgAlpha(0.6f);
       ImGui::Begin("odvr live", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
@@ -247,30 +209,16 @@ LiveReport RunLiveWindow(const LivePlayOptions& o) {
       for (const auto& cam : scene.lost_cameras())
         ImGui::TextColored(ImVec4(1, 0.4f, 0.2f, 1), "camera %s lost: playing on without it", cam.c_str());
       if (!report.messages.empty()) ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", report.messages.back().c_str());
-      ImGui::Text("WASD/arrows drive, drag looks, scroll zooms, Esc quits");
+      ImGui::Text("WASD/arrows drive, drag looks, wheel or +/- zooms, Esc quits");
       ImGui::End();
-      ImGui::Render();
-      ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+      imgui.Render();
     }
     ++report.frames_shown;
     const bool quitting = p.quit_after_s > 0 && t > p.quit_after_s;
-    if (quitting && !p.screenshot.empty() && fb_w > 0 && fb_h > 0) {
-      std::vector<unsigned char> rgba(static_cast<std::size_t>(fb_w) * fb_h * 4);
-      glPixelStorei(GL_PACK_ALIGNMENT, 1);
-      glReadPixels(0, 0, fb_w, fb_h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-      cv::Mat image(fb_h, fb_w, CV_8UC4, rgba.data()), bgr;
-      cv::cvtColor(image, bgr, cv::COLOR_RGBA2BGR);
-      cv::flip(bgr, bgr, 0);
-      WriteFileAtomically(p.screenshot, [&](const std::filesystem::path& tmp) {
-        if (!cv::imwrite(tmp.string(), bgr)) throw Error(p.screenshot, "cannot write PNG");
-      });
-    }
+    if (quitting && !p.screenshot.empty() && fb_w > 0 && fb_h > 0) WriteWindowScreenshot(p.screenshot, fb_w, fb_h);
     glfwSwapBuffers(w);
     if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
   }
-  ImGui_ImplOpenGL3_Shutdown();
-  ImGui_ImplGlfw_Shutdown();
-  ImGui::DestroyContext();
   Finish(scene, all, &report);
   return report;
 }

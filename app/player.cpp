@@ -2,8 +2,6 @@
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
-#include <backends/imgui_impl_glfw.h>
-#include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
 #include <spdlog/spdlog.h>
 
@@ -102,11 +100,7 @@ PlayerReport RunWindow(const PlayerOptions& options) {
   Playback playback(options);
   glfwSwapInterval(1);
 
-  IMGUI_CHECKVERSION();
-  ImGui::CreateContext();
-  ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini next to the user's files
-  ImGui_ImplGlfw_InitForOpenGL(w, true);
-  ImGui_ImplOpenGL3_Init("#version 450");
+  ImGuiSession imgui(w);
   WindowInput input(w);
 
   PlayerReport report;
@@ -163,9 +157,7 @@ PlayerReport RunWindow(const PlayerOptions& options) {
                  static_cast<double>(ImGui::GetIO().Framerate)),
           Printf("yaw %.1f  pitch %.1f  fov %.1f", view.state().yaw_deg, view.state().pitch_deg, view.state().fov_deg)};
 
-      ImGui_ImplOpenGL3_NewFrame();
-      ImGui_ImplGlfw_NewFrame();
-      ImGui::NewFrame();
+      imgui.NewFrame();
       if (show_overlay) {
         ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
         ImGui::SetNextWindowBgAlpha(0.6f);
@@ -183,8 +175,7 @@ PlayerReport RunWindow(const PlayerOptions& options) {
           ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", playback.last_event().c_str());
         ImGui::End();
       }
-      ImGui::Render();
-      ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+      imgui.Render();
     }
     ++report.frames_shown;
     const bool quitting =
@@ -220,9 +211,6 @@ PlayerReport RunWindow(const PlayerOptions& options) {
     }
     if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
   }
-  ImGui_ImplOpenGL3_Shutdown();
-  ImGui_ImplGlfw_Shutdown();
-  ImGui::DestroyContext();
   report.median_total_ms = Median(totals);
   report.last = timings;
   return report;

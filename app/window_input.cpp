@@ -3,6 +3,7 @@
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
 #include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
 
 #include <cstdarg>
@@ -59,6 +60,48 @@ WindowInput::WindowInput(GLFWwindow* w) {
 }
 
 WindowInput::Events WindowInput::Take() { return std::exchange(events_, Events{}); }
+
+ImGuiSession::ImGuiSession(GLFWwindow* window) {
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;
+  ImGui_ImplGlfw_InitForOpenGL(window, true);
+  ImGui_ImplOpenGL3_Init("#version 450");
+}
+
+ImGuiSession::~ImGuiSession() {
+  ImGui_ImplOpenGL3_Shutdown();
+  ImGui_ImplGlfw_Shutdown();
+  ImGui::DestroyContext();
+}
+
+void ImGuiSession::NewFrame() {
+  ImGui_ImplOpenGL3_NewFrame();
+  ImGui_ImplGlfw_NewFrame();
+  ImGui::NewFrame();
+}
+
+void ImGuiSession::Render() {
+  ImGui::Render();
+  ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+}
+
+void FramePresenter::Show(const std::vector<unsigned char>& srgb, int width, int height, int framebuffer_width,
+                          int framebuffer_height) {
+  if (width_ != width || height_ != height) {
+    texture_ = gl::Texture::Create2D(GL_RGBA8, width, height);
+    read_fbo_.AttachColor(texture_);
+    width_ = width;
+    height_ = height;
+  }
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  texture_.Upload2D(GL_RGB, GL_UNSIGNED_BYTE, srgb.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glViewport(0, 0, framebuffer_width, framebuffer_height);
+  // Rows were uploaded top first; the window's y grows upward: flip in the blit.
+  glBlitNamedFramebuffer(read_fbo_.id(), 0, 0, 0, width, height, 0, framebuffer_height, framebuffer_width, 0,
+                         GL_COLOR_BUFFER_BIT, GL_LINEAR);
+}
 
 void WriteWindowScreenshot(const std::string& path, int width, int height) {
   std::vector<unsigned char> rgba(static_cast<std::size_t>(width) * height * 4);

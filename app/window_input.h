@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/gl/objects.h"
+
 struct GLFWwindow;
 
 namespace odvr::app {
@@ -29,6 +31,31 @@ class WindowInput {
   Events events_;
   bool dragging_ = false;
   double last_x_ = 0, last_y_ = 0;
+};
+
+// Dear ImGui on a window for the object's lifetime (no imgui.ini next to the user's files). Make it
+// before the WindowInput, which chains to the backend's callbacks.
+class ImGuiSession {
+ public:
+  explicit ImGuiSession(GLFWwindow* window);
+  ~ImGuiSession();
+  ImGuiSession(const ImGuiSession&) = delete;
+  ImGuiSession& operator=(const ImGuiSession&) = delete;
+  void NewFrame();
+  void Render();  // draws what the frame's ImGui calls built over the back buffer
+};
+
+// Shows a rendered picture (8-bit sRGB, rows top first) in the window's back buffer, scaled to the
+// framebuffer: the augmented and the live player render off-screen at the window's size.
+class FramePresenter {
+ public:
+  void Show(const std::vector<unsigned char>& srgb, int width, int height, int framebuffer_width,
+            int framebuffer_height);
+
+ private:
+  gl::Texture texture_{gl::NoCreate};
+  gl::Framebuffer read_fbo_;
+  int width_ = 0, height_ = 0;
 };
 
 // printf into a std::string (the overlay's lines: drawn by ImGui and printed by --trace, so what a
