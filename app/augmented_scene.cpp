@@ -99,6 +99,15 @@ CarInput DriveInputAt(const std::vector<DriveStep>& script, double t_s) {
   return {};
 }
 
+glm::dvec3 BoundsCentre(const render::TripleProductRenderer& renderer) {
+  glm::dvec3 lo(1e300), hi(-1e300);
+  for (const auto& v : renderer.world_triangles()) {
+    lo = glm::min(lo, glm::dvec3(v));
+    hi = glm::max(hi, glm::dvec3(v));
+  }
+  return 0.5 * (lo + hi);
+}
+
 double DriveDuration(const std::vector<DriveStep>& script) {
   double t = 0;
   for (const auto& s : script) t += s.seconds;
@@ -209,12 +218,7 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
   ro.voxel_resolution = options_.voxel_resolution;
   ro.cone_rings = options_.cone_rings;
   im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
-  glm::dvec3 lo_b(1e300), hi_b(-1e300);
-  for (const auto& v : im.renderer->world_triangles()) {
-    lo_b = glm::min(lo_b, glm::dvec3(v));
-    hi_b = glm::max(hi_b, glm::dvec3(v));
-  }
-  im.car_centre = 0.5 * (lo_b + hi_b);
+  im.car_centre = BoundsCentre(*im.renderer);
 
   car_ = std::make_unique<CarController>(GroundPlane{{0, 1, 0}, 0});
   PlaceCar(options_.car_start_m >= 0 ? options_.car_start_m : options_.picker.view_distance_m, options_.lateral_m);

@@ -40,6 +40,9 @@ struct DriveStep {
 std::vector<DriveStep> ParseDriveScript(const std::string& text);
 // Keys held at time t since the start (none once the script has ended).
 CarInput DriveInputAt(const std::vector<DriveStep>& script, double t_s);
+
+// The centre of the car's bounding box in the renderer's world (where the car look aims).
+glm::dvec3 BoundsCentre(const render::TripleProductRenderer& renderer);
 double DriveDuration(const std::vector<DriveStep>& script);
 
 struct AugmentedOptions {

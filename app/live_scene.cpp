@@ -92,12 +92,7 @@ LiveScene::LiveScene(LiveSceneOptions options) : options_(std::move(options)), i
     ro.lighting_levels = options_.lighting_levels;
     ro.voxel_resolution = options_.voxel_resolution;
     im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
-    glm::dvec3 lo_b(1e300), hi_b(-1e300);
-    for (const auto& v : im.renderer->world_triangles()) {
-      lo_b = glm::min(lo_b, glm::dvec3(v));
-      hi_b = glm::max(hi_b, glm::dvec3(v));
-    }
-    im.car_centre = 0.5 * (lo_b + hi_b);
+    im.car_centre = BoundsCentre(*im.renderer);
   }
   car_ = std::make_unique<CarController>(GroundPlane{{0, 1, 0}, 0});
   car_->Reset({options_.car_ahead_m, 0, 0}, {1, 0, 0});
