@@ -16,6 +16,7 @@
 #include "app/augmented_scene.h"
 #include "app/bench_common.h"
 #include "app/car_look.h"
+#include "app/commands.h"
 #include "app/player.h"
 #include "app/view_controller.h"
 #include "app/window_input.h"
@@ -94,14 +95,6 @@ std::vector<std::uint8_t> ToSrgb8(const sphere::EquirectImage& image) {
     out[i] = lut[static_cast<std::size_t>(v * 4095 + 0.5f)];
   }
   return out;
-}
-
-std::pair<int, int> ParseResize(const std::string& text) {
-  int a = 0, b = 0;
-  char x = 0;
-  if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X') || a < 1 || b < 1)
-    throw UsageError("--resize", "expects WIDTHxHEIGHT (at least 1x1), got '" + text + "'");
-  return {a, b};
 }
 
 // The car's panel, a second ImGui window at the top right, collapsed at first (the picture stays
@@ -203,7 +196,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
   AugmentedScene scene(SceneOptions(o));
   const auto script = o.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(o.drive);
   std::pair<int, int> resize{0, 0};
-  if (!o.resize.empty()) resize = ParseResize(o.resize);
+  if (!o.resize.empty()) resize = ParseSize(o.resize, "--resize");
   glfwSwapInterval(0);  // the frame takes what it takes; vsync would only add to it
 
   ImGuiSession imgui(w);

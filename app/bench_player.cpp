@@ -53,12 +53,7 @@ int RunBenchPlayer(const BenchPlayerOptions& b) {
   }
   if (b.live) return RunBenchLive(b, gl_renderer);
   PlayerOptions o;
-  int w = 0, h = 0;
-  char x = 0;
-  if (std::sscanf(b.size.c_str(), "%d%c%d", &w, &x, &h) != 3 || x != 'x')
-    throw UsageError("--size", "expects WIDTHxHEIGHT, got '" + b.size + "'");
-  o.width = w;
-  o.height = h;
+  std::tie(o.width, o.height) = ParseSize(b.size);
   o.video = DefaultDemoVideo();
   const auto demo = std::filesystem::path(o.video).parent_path();
   o.trajectory = (demo / "trajectory_gt.json").string();
@@ -118,12 +113,7 @@ int RunBenchLive(const BenchPlayerOptions& b, const std::string& gl_renderer) {
     const std::string size = sizes.substr(start, end - start);
     start = end + 1;
     LivePlayOptions o;
-    int w = 0, h = 0;
-    char x = 0;
-    if (std::sscanf(size.c_str(), "%d%c%d", &w, &x, &h) != 3 || x != 'x')
-      throw UsageError("--size", "expects WIDTHxHEIGHT[,WIDTHxHEIGHT...], got '" + sizes + "'");
-    o.player.width = w;
-    o.player.height = h;
+    std::tie(o.player.width, o.player.height) = ParseSize(size);
     const auto root = std::filesystem::path(DefaultDemoVideo()).parent_path().parent_path().parent_path();
     o.rig = (root / "config" / "demo_rig.json").string();
     o.player.car = (root / "media" / "demo" / "car.glb").string();

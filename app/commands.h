@@ -4,6 +4,8 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <string>
+#include <tuple>  // std::tie for ParseSize
+#include <utility>
 #include <vector>
 
 namespace odvr::app {
@@ -34,6 +36,9 @@ CommandFn AddBenchPlayer(CLI::App* sub);
 
 // --cones (1, 7, 19 or 37) as the renderer's hexagonal rings (0-3); throws UsageError otherwise.
 int ConeRingsForCount(int cones);
+
+// "WIDTHxHEIGHT" (each side at least 1) as {width, height}; throws UsageError naming `option`.
+std::pair<int, int> ParseSize(const std::string& text, const std::string& option = "--size");
 
 // media/demo/street.mp4 beside the sources or the working directory; throws if absent.
 std::string DefaultDemoVideo();

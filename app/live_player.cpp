@@ -28,14 +28,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::pair<int, int> ParseSize(const std::string& text, const std::string& option) {
-  int a = 0, b = 0;
-  char x = 0;
-  if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X') || a < 1 || b < 1)
-    throw UsageError(option, "expects WIDTHxHEIGHT (at least 1x1), got '" + text + "'");
-  return {a, b};
-}
-
 LiveSceneOptions SceneOptions(const LivePlayOptions& o) {
   const PlayerOptions& p = o.player;
   LiveSceneOptions s;

@@ -20,20 +20,11 @@ struct PlayCommand {
   LivePlayOptions live_options;  // its `player` is filled from `options` at run time
 };
 
-void ParseSize(const std::string& text, int* w, int* h) {
-  int a = 0, b = 0;
-  char x = 0;
-  if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X'))
-    throw UsageError("--size", "expects WIDTHxHEIGHT, got '" + text + "'");
-  *w = a;
-  *h = b;
-}
-
 int RunPlay(PlayCommand& c) {
   // Headless frames come from the renderer on whatever GL there is, often llvmpipe, where a
   // 1280x720 car frame takes seconds: unless asked, render the demo's files at a quarter of that.
   if (c.size_option->count() == 0 && (c.options.headless || !DisplayAvailable())) c.size = "640x360";
-  ParseSize(c.size, &c.options.width, &c.options.height);
+  std::tie(c.options.width, c.options.height) = ParseSize(c.size);
   if (c.live) {
     if (!c.options.video.empty()) throw UsageError("--live", "plays the rig's cameras, not a video: drop the video");
     if (!c.options.trajectory.empty())

@@ -56,23 +56,6 @@ std::vector<double> Numbers(const std::string& text, const std::string& flag, st
   return v;
 }
 
-std::pair<int, int> ParseSize(const std::string& text) {
-  const auto x = text.find('x');
-  int w = 0, h = 0;
-  try {
-    std::size_t uw = 0, uh = 0;
-    if (x == std::string::npos) throw std::invalid_argument(text);
-    w = std::stoi(text.substr(0, x), &uw);
-    h = std::stoi(text.substr(x + 1), &uh);
-    if (uw != x || uh != text.size() - x - 1) throw std::invalid_argument(text);
-  } catch (const std::exception&) {
-    throw UsageError("--size", "want WIDTHxHEIGHT, got '" + text + "'");
-  }
-  if (w < 8 || h < 8 || w > 8192 || h > 8192)
-    throw UsageError("--size", "each side must be 8..8192 pixels, got '" + text + "'");
-  return {w, h};
-}
-
 void SaveGrey(const std::filesystem::path& path, const std::vector<float>& v, int w, int h) {
   sphere::EquirectImage img(w, h);
   for (std::size_t i = 0; i < v.size(); ++i)
@@ -83,6 +66,8 @@ void SaveGrey(const std::filesystem::path& path, const std::vector<float>& v, in
 int RunRender(const RenderCliOptions& o) {
   using Clock = std::chrono::steady_clock;
   const auto [width, height] = ParseSize(o.size);
+  if (width < 8 || height < 8 || width > 8192 || height > 8192)
+    throw UsageError("--size", "each side must be 8..8192 pixels, got '" + o.size + "'");
   render::RenderOptions options;
   options.lighting_levels = o.levels;
   options.cone_rings = ConeRingsForCount(o.cones);

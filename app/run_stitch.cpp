@@ -34,15 +34,6 @@ struct StitchCommand {
   bool no_gains = false, no_fill = false, json = false;
 };
 
-void ParseSize(const std::string& text, int* w, int* h) {
-  int a = 0, b = 0;
-  char x = 0;
-  if (std::sscanf(text.c_str(), "%d%c%d", &a, &x, &b) != 3 || (x != 'x' && x != 'X'))
-    throw UsageError("--size", "expects WIDTHxHEIGHT, got '" + text + "'");
-  *w = a;
-  *h = b;
-}
-
 cv::Mat ToBgr8(const sphere::EquirectImage& img) {
   cv::Mat out(img.height, img.width, CV_8UC3);
   for (int y = 0; y < img.height; ++y) {
@@ -70,7 +61,7 @@ std::unique_ptr<capture::Source> OpenInput(const StitchCommand& c, const capture
 
 int RunStitch(const StitchCommand& c) {
   capture::StitchOptions options;
-  ParseSize(c.size, &options.width, &options.height);
+  std::tie(options.width, options.height) = ParseSize(c.size);
   if (c.device != "gpu" && c.device != "cpu")
     throw UsageError("--device", "expects gpu or cpu, got '" + c.device + "'");
   options.device = c.device == "gpu" ? capture::StitchDevice::kGpu : capture::StitchDevice::kCpu;

@@ -8,13 +8,26 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "app/commands.h"
+#include "engine/core/error.h"
 #include "tests/app/run_odvr.h"
+#include "tests/error_message.h"
 
 namespace {
 
 using odvr::testing::CliRun;
 using odvr::testing::Lines;
 using odvr::testing::RunOdvr;
+
+TEST(Cli, SizesParseStrictlyAndNameTheirOption) {
+  EXPECT_EQ(odvr::app::ParseSize("1280x720"), std::make_pair(1280, 720));
+  EXPECT_EQ(odvr::app::ParseSize("1X1"), std::make_pair(1, 1));
+  for (const char* bad : {"", "640", "640x", "x360", "64ax36", "640x36 ", "0x5", "-4x4", "640x360x2", "9999999x1"}) {
+    const std::string message = odvr::testing::ErrorMessageOf([&] { odvr::app::ParseSize(bad, "--resize"); });
+    EXPECT_NE(message.find("--resize"), std::string::npos) << "'" << bad << "': " << message;
+    EXPECT_NE(message.find("WIDTHxHEIGHT"), std::string::npos) << "'" << bad << "': " << message;
+  }
+}
 
 TEST(Cli, UnknownCommandExitsTwoWithOneLine) {
   const CliRun r = RunOdvr("frobnicate");
