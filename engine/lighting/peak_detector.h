@@ -10,7 +10,8 @@
 // peak: energy E = Σ (I − b) dA, axis = the energy-weighted mean direction, and λ from the
 // spread: for an SG, E[1 − cos θ] ≈ 1/λ, and a pixel of angular size Δ adds Δ²/12, so
 // λ = 1 / (E[1 − cos θ] + Δ²/12); μ = E / ∫G. Elongated components (a lamp, a glint) get 2–3
-// SGs by k-means on their pixels' directions. The component's pixels are set to b in the residue.
+// SGs by k-means on their pixels' directions. The component's pixels keep min(I, b) per channel in
+// the residue, so residue + peaks hold exactly the frame's energy.
 //
 // LDR frames (every value ≤ 1): a sun is a compact blob clipped at 255, its true intensity lost.
 // Its energy is then estimated from a sky-to-sun prior: the sun's irradiance on a surface facing
