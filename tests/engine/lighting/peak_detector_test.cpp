@@ -212,6 +212,21 @@ TEST(PeakDetector, ResidueAndPeaksKeepTheFramesEnergyWhenTheRingOutshinesAChanne
   EXPECT_LT(ModelEnergy(d.peaks[0]).z, 0.01 * ModelEnergy(d.peaks[0]).x);
 }
 
+// dawn.exr's glow: a region over the threshold but only a few times its surroundings is left to
+// the hierarchy; the same region ten times brighter than them is a light.
+TEST(PeakDetector, GlowOnlyAFewTimesItsSurroundingsIsNoPeak) {
+  for (const float core : {20.f, 60.f}) {
+    sphere::EquirectImage frame(256, 128, 0.1f);
+    const glm::dvec3 centre = Dir(-30, 20);
+    AddDisc(&frame, centre, 15 * sphere::kPi / 180, 3.f);
+    AddDisc(&frame, centre, 5 * sphere::kPi / 180, core);
+    const PeakDetection d = DetectPeaks(frame);
+    EXPECT_LT(d.threshold, core) << "the core is over the threshold";
+    EXPECT_GT(d.threshold, 3.0) << "the surroundings are not";
+    EXPECT_EQ(d.peaks.size(), core < 10 * 3.f ? 0u : 1u) << "core " << core << " over surroundings 3";
+  }
+}
+
 TEST(PeakDetector, ClippedLdrSunStillYieldsAPeakFromTheSkyPrior) {
   const glm::dvec3 sun = Dir(-70, 35);
   const sphere::EquirectImage frame = LdrSky(sun);
