@@ -6,11 +6,14 @@
 //
 // HDR frames: pixels brighter than `threshold_factor` × the mean radiance are grouped into
 // connected components (OpenCV, 8-connected, joined across the ±180° seam and at each pole).
+// A component whose brightest pixel is under `min_contrast` × its surrounding level is a glow,
+// left to the hierarchy.
 // Per component, the excess over the surrounding level b (the mean of a one-pixel ring) is the
 // peak: energy E = Σ (I − b) dA, axis = the energy-weighted mean direction, and λ from the
 // spread: for an SG, E[1 − cos θ] ≈ 1/λ, and a pixel of angular size Δ adds Δ²/12, so
 // λ = 1 / (E[1 − cos θ] + Δ²/12); μ = E / ∫G. Elongated components (a lamp, a glint) get 2–3
-// SGs by k-means on their pixels' directions. The component's pixels are set to b in the residue.
+// SGs by k-means on their pixels' directions. The component's pixels keep min(I, b) per channel in
+// the residue, so residue + peaks hold exactly the frame's energy.
 //
 // LDR frames (every value ≤ 1): a sun is a compact blob clipped at 255, its true intensity lost.
 // Its energy is then estimated from a sky-to-sun prior: the sun's irradiance on a surface facing
@@ -27,6 +30,7 @@ struct PeakDetectorOptions {
   double threshold_factor = 20;     // HDR: brighter than this × mean radiance
   double max_area_fraction = 0.01;  // a "peak" larger than this share of the sphere is not one
   int max_peaks = 8;                // the brightest components, by energy
+  double min_contrast = 10;         // HDR: brightest pixel over the surrounding level, else a glow
   int max_sgs_per_peak = 3;
   double elongation_for_split = 2.0;  // principal-axis ratio above which a component is split
   double ldr_clip_level = 0.98;       // linear value treated as clipped in an LDR frame

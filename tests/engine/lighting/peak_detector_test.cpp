@@ -180,6 +180,53 @@ glm::dvec3 Irradiance(const sphere::EquirectImage& image, const glm::dvec3& axis
   return e;
 }
 
+// The failure park.exr and sunrise.exr showed (bilinearly enlarged, as the bench does): a
+// component bright in luminance whose one-pixel ring is brighter than its pixels in one channel.
+// Residue and peaks must still add up to the frame's energy in every channel; filling the
+// component with the ring's level put blue light at the sun that was never there.
+TEST(PeakDetector, ResidueAndPeaksKeepTheFramesEnergyWhenTheRingOutshinesAChannel) {
+  sphere::EquirectImage frame(256, 128);
+  for (float& v : frame.rgb) v = 0.1f;
+  const glm::dvec3 centre = Dir(40, 10);
+  const double radius = 5 * sphere::kPi / 128;  // five pixels
+  // Lit from a ring of blue (luminance 5.2, under the threshold of ~9) around a yellow core
+  // (luminance 93) whose blue is far below the ring's.
+  for (int row = 0; row < frame.height; ++row)
+    for (int col = 0; col < frame.width; ++col) {
+      const double a = std::acos(
+          std::clamp(glm::dot(sphere::EquirectPixelDirection(col, row, frame.width, frame.height), centre), -1.0, 1.0));
+      float* p = frame.at(col, row);
+      if (a < radius) {
+        p[0] = p[1] = 100, p[2] = 2;
+      } else if (a < radius + 2.5 * sphere::kPi / 128) {
+        p[0] = p[1] = 1, p[2] = 60;
+      }
+    }
+  const PeakDetection d = DetectPeaks(frame);
+  ASSERT_EQ(d.peaks.size(), 1u);
+  ASSERT_TRUE(AllFinite(d.peaks[0]));
+  const glm::dvec3 model = DiscExcess(d.residue, sphere::EquirectImage(256, 128)) + ModelEnergy(d.peaks[0]);
+  const glm::dvec3 truth = DiscExcess(frame, sphere::EquirectImage(256, 128));
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(model[ch], truth[ch], 1e-3 * truth[ch]) << "channel " << ch;
+  // The core's blue is 2 against the ring's 60: the peak holds next to no blue.
+  EXPECT_LT(ModelEnergy(d.peaks[0]).z, 0.01 * ModelEnergy(d.peaks[0]).x);
+}
+
+// dawn.exr's glow: a region over the threshold but only a few times its surroundings is left to
+// the hierarchy; the same region ten times brighter than them is a light.
+TEST(PeakDetector, GlowOnlyAFewTimesItsSurroundingsIsNoPeak) {
+  for (const float core : {20.f, 60.f}) {
+    sphere::EquirectImage frame(256, 128, 0.1f);
+    const glm::dvec3 centre = Dir(-30, 20);
+    AddDisc(&frame, centre, 15 * sphere::kPi / 180, 3.f);
+    AddDisc(&frame, centre, 5 * sphere::kPi / 180, core);
+    const PeakDetection d = DetectPeaks(frame);
+    EXPECT_LT(d.threshold, core) << "the core is over the threshold";
+    EXPECT_GT(d.threshold, 3.0) << "the surroundings are not";
+    EXPECT_EQ(d.peaks.size(), core < 10 * 3.f ? 0u : 1u) << "core " << core << " over surroundings 3";
+  }
+}
+
 TEST(PeakDetector, ClippedLdrSunStillYieldsAPeakFromTheSkyPrior) {
   const glm::dvec3 sun = Dir(-70, 35);
   const sphere::EquirectImage frame = LdrSky(sun);
@@ -283,6 +330,7 @@ void ExpectPeaksHelp(const std::string& name) {
 
 TEST(PeakDetector, PeaksLowerTheConvolvedErrorsOnSky) { ExpectPeaksHelp("sky"); }
 TEST(PeakDetector, PeaksLowerTheConvolvedErrorsOnPark) { ExpectPeaksHelp("park"); }
+TEST(PeakDetector, PeaksLowerTheConvolvedErrorsOnSunrise) { ExpectPeaksHelp("sunrise"); }
 
 }  // namespace
 }  // namespace odvr::lighting
