@@ -7,7 +7,8 @@
 // HDR frames: pixels brighter than `threshold_factor` × the mean radiance are grouped into
 // connected components (OpenCV, 8-connected, joined across the ±180° seam and at each pole).
 // A component whose brightest pixel is under `min_contrast` × its surrounding level is a glow,
-// left to the hierarchy.
+// left to the hierarchy. The 10 is chosen, not derived: it sits in the gap measured over
+// ../shared/data/env (suns 128–3300×, dawn's glow 4.2×, which as peaks raised glossy200 6×).
 // Per component, the excess over the surrounding level b (the mean of a one-pixel ring) is the
 // peak: energy E = Σ (I − b) dA, axis = the energy-weighted mean direction, and λ from the
 // spread: for an SG, E[1 − cos θ] ≈ 1/λ, and a pixel of angular size Δ adds Δ²/12, so
