@@ -81,22 +81,6 @@ void Medians(const std::vector<FrameTimings>& all, PlayerReport* report) {
   if (!all.empty()) report->last = all.back();
 }
 
-// 8-bit sRGB RGB rows of a linear image (what the window shows).
-std::vector<std::uint8_t> ToSrgb8(const sphere::EquirectImage& image) {
-  static const std::vector<std::uint8_t> lut = [] {
-    std::vector<std::uint8_t> l(4096);
-    for (int i = 0; i < 4096; ++i)
-      l[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(std::lround(255 * image::LinearToSrgb(i / 4095.f)));
-    return l;
-  }();
-  std::vector<std::uint8_t> out(image.rgb.size());
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    const float v = std::clamp(image.rgb[i], 0.f, 1.f);
-    out[i] = lut[static_cast<std::size_t>(v * 4095 + 0.5f)];
-  }
-  return out;
-}
-
 // The car's panel, a second ImGui window at the top right, collapsed at first (the picture stays
 // clear): edits `look` and shows the light frame's figures. True when a control changed.
 // `widgets` gets each checkbox's centre and the panel's corners in window pixels (--trace:
@@ -259,7 +243,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
       frame = scene.Render(rw, rh, view, dt);
       all.push_back(Timings(frame));
       report.frames.push_back(Record(frame));
-      presenter.Show(ToSrgb8(frame.image), rw, rh, fb_w, fb_h);
+      presenter.Show(frame.image, fb_w, fb_h);
 
       overlay = {Printf("frame %d (light %d)   car %.1f km/h%s", frame.view_frame, frame.light_frame,
                         scene.car().state().speed_mps * 3.6, paused ? "  (paused)" : ""),

@@ -73,22 +73,6 @@ LiveTimings Medians(const std::vector<LiveTimings>& all) {
   return m;
 }
 
-// 8-bit sRGB RGB rows of a linear image (what the window shows).
-std::vector<std::uint8_t> ToSrgb8(const sphere::EquirectImage& image) {
-  static const std::vector<std::uint8_t> lut = [] {
-    std::vector<std::uint8_t> l(4096);
-    for (int i = 0; i < 4096; ++i)
-      l[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(std::lround(255 * image::LinearToSrgb(i / 4095.f)));
-    return l;
-  }();
-  std::vector<std::uint8_t> out(image.rgb.size());
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    const float v = std::clamp(image.rgb[i], 0.f, 1.f);
-    out[i] = lut[static_cast<std::size_t>(v * 4095 + 0.5f)];
-  }
-  return out;
-}
-
 void Finish(const LiveScene& scene, const std::vector<LiveTimings>& all, LiveReport* report) {
   report->median = Medians(all);
   if (!all.empty()) report->last = all.back();
@@ -186,7 +170,7 @@ LiveReport RunLiveWindow(const LivePlayOptions& o) {
       for (auto& m : scene.TakeMessages()) report.messages.push_back(std::move(m));
       all.push_back(frame.ms);
       report.frames.push_back(Record(frame));
-      presenter.Show(ToSrgb8(frame.image), rw, rh, fb_w, fb_h);
+      presenter.Show(frame.image, fb_w, fb_h);
 
       imgui.NewFrame();
       ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);

@@ -6,7 +6,10 @@
 #include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdarg>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -17,6 +20,7 @@
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/objects.h"
+#include "engine/image/image_io.h"
 
 namespace odvr::app {
 
@@ -86,8 +90,17 @@ void ImGuiSession::Render() {
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 }
 
-void FramePresenter::Show(const std::vector<unsigned char>& srgb, int width, int height, int framebuffer_width,
-                          int framebuffer_height) {
+void FramePresenter::Show(const sphere::EquirectImage& linear, int framebuffer_width, int framebuffer_height) {
+  static const std::vector<std::uint8_t> lut = [] {
+    std::vector<std::uint8_t> l(4096);
+    for (int i = 0; i < 4096; ++i)
+      l[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(std::lround(255 * image::LinearToSrgb(i / 4095.f)));
+    return l;
+  }();
+  std::vector<std::uint8_t> srgb(linear.rgb.size());
+  for (std::size_t i = 0; i < srgb.size(); ++i)
+    srgb[i] = lut[static_cast<std::size_t>(std::clamp(linear.rgb[i], 0.f, 1.f) * 4095 + 0.5f)];
+  const int width = linear.width, height = linear.height;
   if (width_ != width || height_ != height) {
     texture_ = gl::Texture::Create2D(GL_RGBA8, width, height);
     read_fbo_.AttachColor(texture_);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "engine/gl/objects.h"
+#include "engine/sphere/equirect_image.h"
 
 struct GLFWwindow;
 
@@ -45,12 +46,11 @@ class ImGuiSession {
   void Render();  // draws what the frame's ImGui calls built over the back buffer
 };
 
-// Shows a rendered picture (8-bit sRGB, rows top first) in the window's back buffer, scaled to the
-// framebuffer: the augmented and the live player render off-screen at the window's size.
+// Shows a rendered linear picture (rows top first) in the window's back buffer as 8-bit sRGB,
+// scaled to the framebuffer: the augmented and the live player render off-screen at the window's size.
 class FramePresenter {
  public:
-  void Show(const std::vector<unsigned char>& srgb, int width, int height, int framebuffer_width,
-            int framebuffer_height);
+  void Show(const sphere::EquirectImage& linear, int framebuffer_width, int framebuffer_height);
 
  private:
   gl::Texture texture_{gl::NoCreate};
