@@ -237,7 +237,7 @@ bool termLobe(in TermLobes t, int i, vec3 n, vec3 wo, out vec3 axis, out float l
     if (i == 0) {
       axis = n;
       lambda = kCosineSgLambda;
-      weight = t.cosine_weight * kCosineSgAmplitude;
+      weight = t.cosine_weight;  // the clamped cosine itself (material::Lobe::clamped_cosine)
       cosine = true;
       return t.cosine_weight.x > 0.0 || t.cosine_weight.y > 0.0 || t.cosine_weight.z > 0.0;
     }
