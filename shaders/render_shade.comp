@@ -99,7 +99,8 @@ float erfcPositive(float x) {
          exp(-x * x);
 }
 
-float clampedCosineMean(float z, float lambda) {
+// .x: material::ClampedCosineMean, .y: material::ClampedCosineGrazingMean.
+vec2 clampedCosineMeans(float z, float lambda) {
   z = clamp(z, -1.0, 1.0);
   lambda = max(lambda, 0.0);
   if (lambda >= kCosineLambdaMax) {
@@ -107,7 +108,20 @@ float clampedCosineMean(float z, float lambda) {
     float e = 0.5 * erfcPositive(abs(x) * 0.70710678);
     float cdf = x >= 0.0 ? 1.0 - e : e;
     float pdf = 0.39894228 * exp(-0.5 * x * x);
-    return (1.0 / tanh(lambda) - 1.0 / lambda) * (z * cdf + pdf / k);
+    float mc = 1.0 / tanh(lambda) - 1.0 / lambda;
+    float mean = mc * (z * cdf + pdf / k);
+    // The grazing mean from the truncated moments of n·w (material::ClampedCosineGrazingMean).
+    float m = z * mc, s2 = (1.0 - z * z) / lambda + 1.0 / (lambda * lambda), s = sqrt(s2);
+    float xs = m / s;
+    float es = 0.5 * erfcPositive(abs(xs) * 0.70710678);
+    float m0 = xs >= 0.0 ? 1.0 - es : es;
+    float m1 = m * m0 + s * 0.39894228 * exp(-0.5 * xs * xs);
+    float m2 = m * m1 + s2 * m0;
+    float m3 = m * m2 + 2.0 * s2 * m1;
+    float m4 = m * m3 + 3.0 * s2 * m2;
+    float m5 = m * m4 + 4.0 * s2 * m3;
+    float m6 = m * m5 + 5.0 * s2 * m4;
+    return vec2(mean, max(m1 - 5.0 * m2 + 10.0 * m3 - 10.0 * m4 + 5.0 * m5 - m6, 0.0));
   }
   float row = lambda / (lambda + kCosineKappa) / (kCosineLambdaMax / (kCosineLambdaMax + kCosineKappa)) *
               float(kCosineRows - 1);
@@ -116,9 +130,15 @@ float clampedCosineMean(float z, float lambda) {
   int c = clamp(int(col), 0, kCosineZ - 2);
   float fr = row - float(r), fc = col - float(c);
   int i = r * kCosineZ + c;
-  return mix(mix(cosineTable[i], cosineTable[i + 1], fc), mix(cosineTable[i + kCosineZ], cosineTable[i + kCosineZ + 1], fc),
-             fr);
+  const int kBlock = kCosineRows * kCosineZ;
+  vec2 a = vec2(cosineTable[i], cosineTable[kBlock + i]);
+  vec2 b = vec2(cosineTable[i + 1], cosineTable[kBlock + i + 1]);
+  vec2 d = vec2(cosineTable[i + kCosineZ], cosineTable[kBlock + i + kCosineZ]);
+  vec2 e = vec2(cosineTable[i + kCosineZ + 1], cosineTable[kBlock + i + kCosineZ + 1]);
+  return mix(mix(a, b, fc), mix(d, e, fc), fr);
 }
+
+float clampedCosineMean(float z, float lambda) { return clampedCosineMeans(z, lambda).x; }
 
 // ∫ max(0, n·w) G(w) for a unit SG (material::ClampedCosineIntegral).
 float clampedCosineIntegral(vec3 n, vec3 axis, float lambda) {
@@ -259,14 +279,27 @@ float linearFactor(SgProduct p) {
   return 1.0 + dot(gLinear, p.axis) * m;
 }
 
+vec3 gGrazing;  // and its grazing factor (material::Lobe::grazing) of x = gView·wi
+vec3 gView;
+
+// material::ClampedCosineLobeIntegral against a unit light SG; p: the lobe's SG stand-in times it.
+float clampedCosineLobeIntegral(vec3 axis, float lambda, SgProduct p) {
+  vec2 m = clampedCosineMeans(dot(gCosineNormal, axis), lambda);
+  float i = m.x * linearFactor(p);
+  if (gGrazing != vec3(0.0)) {
+    float x = dot(gView, p.axis) * (p.lambda < 1e-3 ? p.lambda / 3.0 : 1.0 / tanh(p.lambda) - 1.0 / p.lambda);
+    i += m.y * (gGrazing.x + x * (gGrazing.y + x * gGrazing.z));
+  }
+  return i * sgIntegral(lambda);
+}
+
 // One lighting SG's contribution to a lobe: unshadowed ∫ G_lobe G_light (unit amplitudes) times
 // the visible share.
 void addLight(vec3 lobe_axis, float lobe_lambda, vec3 axis, float lambda, vec3 amplitude, in ConeSet set,
               inout vec3 shaded, inout vec3 unshadowed, inout uvec4 count) {
   SgProduct prod = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
-  float full = (gCosine ? clampedCosineIntegral(gCosineNormal, axis, lambda)
-                        : kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda)) *
-               linearFactor(prod);
+  float full = gCosine ? clampedCosineLobeIntegral(axis, lambda, prod)
+                       : kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda) * linearFactor(prod);
   float share = 1.0;
   if (!set.all_visible) {
     share = visibleShare(prod, set);
@@ -298,8 +331,8 @@ void shadeLobe(vec3 lobe_axis, float lobe_lambda, in ConeSet set, inout vec3 sha
 // Peaks with their own cones: Σ_p μ_p ∫ G_lobe G_p · v_p (the clamped cosine exactly).
 float peakIntegral(vec3 lobe_axis, float lobe_lambda, bool cosine, vec3 axis, float lambda) {
   SgProduct p = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
-  float i = cosine ? clampedCosineIntegral(lobe_axis, axis, lambda) : kTwoPi * exp(p.log_amplitude) * sgShape(p.lambda);
-  return i * linearFactor(p);
+  return cosine ? clampedCosineLobeIntegral(axis, lambda, p)
+                : kTwoPi * exp(p.log_amplitude) * sgShape(p.lambda) * linearFactor(p);
 }
 
 void shadePeaks(vec3 lobe_axis, float lobe_lambda, bool cosine, in float peak_visibility[kMaxPeaks],
@@ -350,6 +383,7 @@ void main() {
   uint index = uint(pixel.y * uSize.x + pixel.x);
   gCount = uvec4(0);
   gLinear = vec3(0.0);
+  gGrazing = vec3(0.0);
   gCosine = false;
   gCosineNormal = vec3(0.0, 1.0, 0.0);
   vec4 gp = imageLoad(uGPosition, pixel);
@@ -373,6 +407,8 @@ void main() {
         bool cosine;
         if (termLobe(t, i, n, wo, axis, lambda, weight, cosine)) {
           gLinear = cosine ? t.cosine_linear : vec3(0.0);
+          gGrazing = cosine ? t.cosine_grazing : vec3(0.0);
+          gView = wo;
           emitLobe(axis, lambda, weight, cosine);
         }
       }

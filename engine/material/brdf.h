@@ -46,10 +46,11 @@
 //   retro-reflection of rough surfaces brightens grazing views and light from behind the viewer.
 //   The Principled BSDF adds its specular layer on top of the diffuse one, without the glTF
 //   spec's (1 − F) on the diffuse: measured against Cycles, a Lambertian (1 − F) diffuse was
-//   9–12 % dark on the diffuse paints (docs/benchmarks/render_accuracy.md). The lobes: the Lambertian
-//   lobe weighted by f_d's directional albedo at wo (PrincipledDiffuseAlbedo), its retro-reflection
-//   at grazing views FV r (1 + wi·wo) kept exactly as the lobe's linear factor (Lobe::linear;
-//   the FL terms, light at grazing incidence, enter the albedo only), plus the GGX lobe.
+//   9–12 % dark on the diffuse paints (docs/benchmarks/render_accuracy.md). The lobes: the clamped
+//   cosine with f_d's terms constant in FL as its weight and exact linear factor (Lobe::linear:
+//   the retro-reflection at grazing views FV r (1 + wi·wo)), the FL terms (light at grazing
+//   incidence) as its grazing factor (Lobe::grazing, integrated through ClampedCosineGrazingMean,
+//   wi·wo taken at the mean direction), plus the GGX lobe.
 //
 // What that costs (brdf_test.cpp prints the table; SG light λ 10–1000, views 0–75°, error against
 // quadrature): with a light aimed at the mirror direction 0.03 % (Phong n = 10⁴) to ~50 % (GGX,
@@ -138,13 +139,16 @@ using Brdf = std::variant<Lambertian, Phong, BlinnPhong, Ward, CookTorrance, Met
 // One term of the lobe sum: weight ⊙ G(wi; sg) (1 + linear·wi). The linear factor's integral
 // against an SG light is exact: ∫ P (1 + ℓ·wi) = ∫P (1 + ℓ·c_P SgMeanCosine(λ_P)) for the product
 // P of lobe and light (axis c_P, λ_P), since an SG's mean direction is c (coth λ − 1/λ).
-// A clamped-cosine lobe (the diffuse ones) is weight ⊙ max(0, sg.axis·wi) (1 + linear·wi)
-// instead, integrated by ClampedCosineMean; `sg` is then CosineSg(n), its SG stand-in.
+// A clamped-cosine lobe (the diffuse ones) is instead, with n = sg.axis and x = view·wi,
+//   weight ⊙ max(0, n·wi) [1 + linear·wi + (1 − n·wi)⁵ (grazing₀ + grazing₁ x + grazing₂ x²)],
+// integrated by ClampedCosineLobeIntegral; `sg` is then CosineSg(n), its SG stand-in.
 struct Lobe {
   lighting::Sg sg;
   glm::dvec3 weight{1};
   glm::dvec3 linear{0};
   bool clamped_cosine = false;
+  glm::dvec3 grazing{0};  // Burley's FL terms (MetallicRoughness), relative to weight
+  glm::dvec3 view{0};
 };
 
 enum class CosineTerm { kAtLobeAxis, kAsSg };
@@ -193,11 +197,19 @@ double SgMeanCosine(double lambda);
 // in ClampedCosineTable up to kClampedCosineLambdaMax; beyond, the SG is a narrow Gaussian
 // against a nearly planar horizon: (coth λ − 1/λ)(z Φ(z√λ) + φ(z√λ)/√λ), within 1 % there.
 double ClampedCosineMean(double z, double lambda);
-// The table (row-major, kClampedCosineRows rows of kClampedCosineZ), computed once by quadrature;
-// the renderer's shader interpolates the same numbers.
+// The same with Burley's grazing-light weight FL = (1 − n·w)⁵: ∫ G max(0, n·w) FL / ∫ G. Beyond
+// the table, from the truncated moments of n·w as a Gaussian.
+double ClampedCosineGrazingMean(double z, double lambda);
+// The table: kClampedCosineRows rows of kClampedCosineZ of ClampedCosineMean, then as many of
+// ClampedCosineGrazingMean; computed once by quadrature, the shader interpolates the same numbers.
 const std::vector<double>& ClampedCosineTable();
 // ∫ max(0, n·w) G(w) dw for an SG G (its amplitude included).
 double ClampedCosineIntegral(const glm::dvec3& n, const lighting::Sg& g);
+// ∫ of a clamped-cosine lobe (without its weight) against the SG g (amplitude included). Its
+// linear and grazing factors are taken at the mean direction of `product`, the lobe's SG stand-in
+// times the light: exact for the linear one (as LinearFactor), for the quadratic grazing one
+// exact for a sharp light and within 1.5 % of the directional albedo under a uniform one.
+double ClampedCosineLobeIntegral(const Lobe& lobe, const lighting::Sg& g, const lighting::Sg& product);
 // 1 + linear·(the product's mean direction): a lobe's linear factor integrated against `product`.
 double LinearFactor(const glm::dvec3& linear, const lighting::Sg& product);
 // Cycles' principled diffuse (Burley 2015) relative to Lambert's 1/π: f_d π for n·wi, n·wo and

@@ -107,20 +107,22 @@ double VisibleShare(const Sg& product, const ConeSet& set) {
   return den > 0 ? num / den : set.visibility.front();
 }
 
-// The unshadowed ∫ lobe × light (unit amplitudes): for a clamped-cosine lobe the exact
-// ∫ max(0, n·w) G_light, n its axis.
-double FullIntegral(const Sg& lobe, bool cosine, const glm::dvec3& linear, const Sg& l) {
-  const double i = cosine ? material::ClampedCosineIntegral(lobe.axis, l) : lighting::IntegralOfProduct(lobe, l);
-  return i * material::LinearFactor(linear, lighting::Product(lobe, l));
+// The unshadowed ∫ lobe × light (the lobe's SG of unit amplitude, or for a clamped-cosine lobe
+// material::ClampedCosineLobeIntegral), without the lobe's weight.
+double FullIntegral(const material::Lobe& lobe, const Sg& l) {
+  const Sg unit{lobe.sg.axis, lobe.sg.lambda, 1.0};
+  const Sg product = lighting::Product(unit, l);
+  if (lobe.clamped_cosine) return material::ClampedCosineLobeIntegral(lobe, l, product);
+  return lighting::IntegralOfProduct(unit, l) * material::LinearFactor(lobe.linear, product);
 }
 
-void AddLight(const Sg& lobe, bool cosine, const glm::dvec3& linear, const lighting::RgbSg& light, const ConeSet& set,
-              glm::dvec3* shaded, glm::dvec3* unshadowed, PixelCounts* count) {
+void AddLight(const material::Lobe& lobe, const lighting::RgbSg& light, const ConeSet& set, glm::dvec3* shaded,
+              glm::dvec3* unshadowed, PixelCounts* count) {
   const Sg l{light.axis, light.lambda, 1.0};
-  const double full = FullIntegral(lobe, cosine, linear, l);
+  const double full = FullIntegral(lobe, l);
   double share = 1;
   if (!set.all_visible) {
-    const LogProduct prod = ProductLog(lobe.axis, lobe.lambda, l.axis, l.lambda);
+    const LogProduct prod = ProductLog(lobe.sg.axis, lobe.sg.lambda, l.axis, l.lambda);
     share = VisibleShare(Sg{prod.axis, prod.lambda, 1.0}, set);
     count->triples += static_cast<unsigned>(set.cones.size());
   }
@@ -129,29 +131,27 @@ void AddLight(const Sg& lobe, bool cosine, const glm::dvec3& linear, const light
   count->sgs += 1;
 }
 
-void ShadeLobe(const Sg& lobe, bool cosine, const glm::dvec3& linear, const ConeSet& set, const ReferenceInputs& in,
-               glm::dvec3* shaded, glm::dvec3* unshadowed, PixelCounts* count) {
+void ShadeLobe(const material::Lobe& lobe, const ConeSet& set, const ReferenceInputs& in, glm::dvec3* shaded,
+               glm::dvec3* unshadowed, PixelCounts* count) {
   const PreparedLighting& L = *in.lighting;
-  if (L.constant != glm::vec3(0))
-    AddLight(lobe, cosine, linear, {{0, 1, 0}, 0.0, L.constant}, set, shaded, unshadowed, count);
+  if (L.constant != glm::vec3(0)) AddLight(lobe, {{0, 1, 0}, 0.0, L.constant}, set, shaded, unshadowed, count);
   if (in.bins && !L.srbfs.empty()) {
-    for (int g : in.bins->Query(L.env_from_world * lobe.axis, lobe.lambda)) {
+    for (int g : in.bins->Query(L.env_from_world * lobe.sg.axis, lobe.sg.lambda)) {
       const auto& s = L.srbfs[static_cast<std::size_t>(g)];
       if (s.amplitude == glm::vec3(0)) continue;
-      AddLight(lobe, cosine, linear, s, set, shaded, unshadowed, count);
+      AddLight(lobe, s, set, shaded, unshadowed, count);
     }
   }
   const std::size_t first = in.options.peak_cones ? TripleProductRenderer::kMaxPeakCones : 0;
-  for (std::size_t k = first; k < L.peaks.size(); ++k)
-    AddLight(lobe, cosine, linear, L.peaks[k], set, shaded, unshadowed, count);
+  for (std::size_t k = first; k < L.peaks.size(); ++k) AddLight(lobe, L.peaks[k], set, shaded, unshadowed, count);
 }
 
-void ShadePeaks(const Sg& lobe, const glm::dvec3& linear, bool cosine, const std::vector<double>& peak_visibility,
-                const ReferenceInputs& in, glm::dvec3* shaded, glm::dvec3* unshadowed) {
+void ShadePeaks(const material::Lobe& lobe, const std::vector<double>& peak_visibility, const ReferenceInputs& in,
+                glm::dvec3* shaded, glm::dvec3* unshadowed) {
   if (!in.options.peak_cones) return;
   const auto& peaks = in.lighting->peaks;
   for (std::size_t k = 0; k < std::min<std::size_t>(peaks.size(), TripleProductRenderer::kMaxPeakCones); ++k) {
-    const double full = FullIntegral(lobe, cosine, linear, Sg{peaks[k].axis, peaks[k].lambda, 1.0});
+    const double full = FullIntegral(lobe, Sg{peaks[k].axis, peaks[k].lambda, 1.0});
     *shaded += glm::dvec3(peaks[k].amplitude) * (full * peak_visibility[k]);
     *unshadowed += glm::dvec3(peaks[k].amplitude) * full;
   }
@@ -224,8 +224,8 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
               const bool cosine = lobe.clamped_cosine;
               const ConeSet set = TraceLobeCones(unit, cosine, origin, in);
               glm::dvec3 shaded(0), unshadowed(0);
-              ShadeLobe(unit, cosine, lobe.linear, set, in, &shaded, &unshadowed, &count);
-              ShadePeaks(unit, lobe.linear, cosine, peak_v, in, &shaded, &unshadowed);
+              ShadeLobe(lobe, set, in, &shaded, &unshadowed, &count);
+              ShadePeaks(lobe, peak_v, in, &shaded, &unshadowed);
               // A clamped-cosine lobe's weight is the whole of it; an SG lobe's amplitude is apart.
               radiance += lobe.weight * (cosine ? 1.0 : lobe.sg.amplitude) * shaded;
               count.lobes += 1;
@@ -242,16 +242,16 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
               continue;
             p.y = 0;
             result->ground_mask[idx] = 1.f;
-            const Sg up{{0, 1, 0}, material::kCosineSgLambda, 1.0};
-            const ConeSet set = TraceLobeCones(up, true, p, in);
+            const material::Lobe up{material::CosineSg({0, 1, 0}), glm::dvec3(1), glm::dvec3(0), true};
+            const ConeSet set = TraceLobeCones({up.sg.axis, up.sg.lambda, 1.0}, true, p, in);
             const std::vector<double> peak_v = TracePeakCones(p, in, &count);
             count.cones += static_cast<unsigned>(set.cones.size());
             bool lit = set.all_visible;
             for (double v : peak_v) lit = lit && v >= 1.0;
             if (lit) continue;
             glm::dvec3 shaded(0), unshadowed(0);
-            ShadeLobe(up, true, glm::dvec3(0), set, in, &shaded, &unshadowed, &count);
-            ShadePeaks(up, glm::dvec3(0), true, peak_v, in, &shaded, &unshadowed);
+            ShadeLobe(up, set, in, &shaded, &unshadowed, &count);
+            ShadePeaks(up, peak_v, in, &shaded, &unshadowed);
             count.lobes += 1;
             for (int c = 0; c < 3; ++c)
               result->shadow.rgb[3 * idx + c] =
