@@ -34,8 +34,9 @@ struct MaterialTerm {
 };
 layout(std430, binding = 5) readonly buffer Materials { MaterialTerm terms[]; };
 layout(std430, binding = 6) writeonly buffer Counts { uvec4 counts[]; };  // lobes, cones, triple products, SGs
-// material::ClampedCosineTable: ∫ G max(0, n·w) / ∫ G over (λ, z = n·c), row-major.
-layout(std430, binding = 8) readonly buffer CosineTable { float cosineTable[]; };
+// material::ClampedCosineTable over (λ, z = n·c), row-major, its two blocks interleaved:
+// ∫ G max(0, n·w) / ∫ G, and the same with FL = (1 − n·w)⁵.
+layout(std430, binding = 8) readonly buffer CosineTable { vec2 cosineTable[]; };
 
 uniform ivec2 uSize;
 uniform vec3 uCameraPosition;
@@ -130,12 +131,8 @@ vec2 clampedCosineMeans(float z, float lambda) {
   int c = clamp(int(col), 0, kCosineZ - 2);
   float fr = row - float(r), fc = col - float(c);
   int i = r * kCosineZ + c;
-  const int kBlock = kCosineRows * kCosineZ;
-  vec2 a = vec2(cosineTable[i], cosineTable[kBlock + i]);
-  vec2 b = vec2(cosineTable[i + 1], cosineTable[kBlock + i + 1]);
-  vec2 d = vec2(cosineTable[i + kCosineZ], cosineTable[kBlock + i + kCosineZ]);
-  vec2 e = vec2(cosineTable[i + kCosineZ + 1], cosineTable[kBlock + i + kCosineZ + 1]);
-  return mix(mix(a, b, fc), mix(d, e, fc), fr);
+  return mix(mix(cosineTable[i], cosineTable[i + 1], fc), mix(cosineTable[i + kCosineZ], cosineTable[i + kCosineZ + 1], fc),
+             fr);
 }
 
 float clampedCosineMean(float z, float lambda) { return clampedCosineMeans(z, lambda).x; }
@@ -285,12 +282,11 @@ vec3 gView;
 // material::ClampedCosineLobeIntegral against a unit light SG; p: the lobe's SG stand-in times it.
 float clampedCosineLobeIntegral(vec3 axis, float lambda, SgProduct p) {
   vec2 m = clampedCosineMeans(dot(gCosineNormal, axis), lambda);
-  float i = m.x * linearFactor(p);
-  if (gGrazing != vec3(0.0)) {
-    float x = dot(gView, p.axis) * (p.lambda < 1e-3 ? p.lambda / 3.0 : 1.0 / tanh(p.lambda) - 1.0 / p.lambda);
-    i += m.y * (gGrazing.x + x * (gGrazing.y + x * gGrazing.z));
-  }
-  return i * sgIntegral(lambda);
+  if (gLinear == vec3(0.0) && gGrazing == vec3(0.0)) return m.x * sgIntegral(lambda);
+  vec3 mean_direction = p.axis * (p.lambda < 1e-3 ? p.lambda / 3.0 : 1.0 / tanh(p.lambda) - 1.0 / p.lambda);
+  float x = dot(gView, mean_direction);
+  return (m.x * (1.0 + dot(gLinear, mean_direction)) + m.y * (gGrazing.x + x * (gGrazing.y + x * gGrazing.z))) *
+         sgIntegral(lambda);
 }
 
 // One lighting SG's contribution to a lobe: unshadowed ∫ G_lobe G_light (unit amplitudes) times

@@ -532,8 +532,13 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
     table[i] = static_cast<float>(material::NdfSgLambda(a) * a * a);
   }
   im.ndf_table = MakeBuffer(table);
+  // The clamped cosine's two tables interleaved, so that the shader reads both with one vec2.
   const std::vector<double>& cosine = material::ClampedCosineTable();
-  im.cosine_table = MakeBuffer(std::vector<float>(cosine.begin(), cosine.end()));
+  const std::size_t block = cosine.size() / 2;
+  std::vector<glm::vec2> interleaved(block);
+  for (std::size_t i = 0; i < block; ++i)
+    interleaved[i] = glm::vec2(static_cast<float>(cosine[i]), static_cast<float>(cosine[block + i]));
+  im.cosine_table = MakeBuffer(interleaved);
 
   // Overlap bins for the levels used, flattened for the shader.
   lighting::OverlapBinOptions bo;
