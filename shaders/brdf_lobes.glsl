@@ -125,6 +125,7 @@ struct TermLobes {
   bool has_cosine;      // lobe 0 is the clamped-cosine lobe
   vec3 cosine_weight;
   vec3 cosine_linear;   // its linear factor (material::Lobe::linear)
+  vec3 cosine_grazing;  // its grazing factor's coefficients (material::Lobe::grazing)
   int kind;             // -1: none; kMConstant, kMCookTorrance, kMWard: a warped lobe; 3: Phong
   vec3 color;           // M's colour parameter (Phong: its weight)
   float alpha, amplitude;
@@ -179,6 +180,7 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
   t.count = 0;
   t.has_cosine = false;
   t.cosine_linear = vec3(0.0);
+  t.cosine_grazing = vec3(0.0);
   t.kind = -1;
   if (type == kBrdfGltf || type == kBrdfMetallicRoughness) {
     if (type == kBrdfMetallicRoughness) {
@@ -191,14 +193,17 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
     float r = clamp(roughness, 0.0, 1.0);
     vec3 f0 = mix(vec3(0.04), base, metallic);
     t.has_cosine = true;
-    // material::LobesOf(MetallicRoughness): the retro-reflection FV r (1 + wi·wo) as the lobe's
-    // linear factor, a0 keeping the directional albedo.
+    // material::LobesOf(MetallicRoughness): f_d π = a0 + a1 wi·wo + FL B(wi·wo), the linear
+    // factor and the grazing factor's coefficients relative to a0.
     float mu = dot(n, wo);
     float b = 1.0 - clamp(mu, 0.0, 1.0);
-    float a1 = b * b * b * b * b * r;
-    float a0 = principledDiffuseAlbedo(mu, r) - a1 * 2.0 * mu / 3.0;
+    float fv = b * b * b * b * b;
+    float a1 = fv * r, a0 = 1.0 - 0.5 * fv + fv * r;
     t.cosine_weight = base * ((1.0 - metallic) * a0 / kLobePi);
     t.cosine_linear = (a1 / a0) * wo;
+    t.cosine_grazing = vec3(-0.5 * (1.0 - 0.5 * fv) + r * (1.0 - fv) + r * r * fv, r * (1.0 - fv) + 2.0 * r * r * fv,
+                            r * r * fv) /
+                       a0;
     t.count = 1;
     float alpha = clamp(r * r, kMinAlpha, 1.0);
     describeWarped(t, ndfSgLambda(alpha), 1.0 / (kLobePi * alpha * alpha), kMCookTorrance, f0, alpha, true, n, wo);
@@ -237,7 +242,7 @@ bool termLobe(in TermLobes t, int i, vec3 n, vec3 wo, out vec3 axis, out float l
     if (i == 0) {
       axis = n;
       lambda = kCosineSgLambda;
-      weight = t.cosine_weight * kCosineSgAmplitude;
+      weight = t.cosine_weight;  // the clamped cosine itself (material::Lobe::clamped_cosine)
       cosine = true;
       return t.cosine_weight.x > 0.0 || t.cosine_weight.y > 0.0 || t.cosine_weight.z > 0.0;
     }

@@ -34,6 +34,9 @@ struct MaterialTerm {
 };
 layout(std430, binding = 5) readonly buffer Materials { MaterialTerm terms[]; };
 layout(std430, binding = 6) writeonly buffer Counts { uvec4 counts[]; };  // lobes, cones, triple products, SGs
+// material::ClampedCosineTable over (λ, z = n·c), row-major, its two blocks interleaved:
+// ∫ G max(0, n·w) / ∫ G, and the same with FL = (1 − n·w)⁵.
+layout(std430, binding = 8) readonly buffer CosineTable { vec2 cosineTable[]; };
 
 uniform ivec2 uSize;
 uniform vec3 uCameraPosition;
@@ -82,6 +85,63 @@ float groundLit(vec3 p, vec3 dir) {
   return groundLitFraction(vec3(q.x, 0.0, q.z));
 }
 
+// material::ClampedCosineMean: the clamped cosine's mean under a unit SG of sharpness λ whose
+// axis is at cos θ = z from n, interpolated in the table up to kCosineLambdaMax, the narrow
+// Gaussian's closed form beyond (brdf.h derives both).
+const int kCosineZ = 129;          // material::kClampedCosineZ
+const int kCosineRows = 33;        // material::kClampedCosineRows
+const float kCosineLambdaMax = 64.0;
+const float kCosineKappa = 8.0;
+
+// erfc for x ≥ 0 (Abramowitz & Stegun 7.1.26, |error| < 1.5·10⁻⁷).
+float erfcPositive(float x) {
+  float t = 1.0 / (1.0 + 0.3275911 * x);
+  return t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429)))) *
+         exp(-x * x);
+}
+
+// .x: material::ClampedCosineMean, .y: material::ClampedCosineGrazingMean.
+vec2 clampedCosineMeans(float z, float lambda) {
+  z = clamp(z, -1.0, 1.0);
+  lambda = max(lambda, 0.0);
+  if (lambda >= kCosineLambdaMax) {
+    float k = sqrt(lambda), x = z * k;
+    float e = 0.5 * erfcPositive(abs(x) * 0.70710678);
+    float cdf = x >= 0.0 ? 1.0 - e : e;
+    float pdf = 0.39894228 * exp(-0.5 * x * x);
+    float mc = 1.0 / tanh(lambda) - 1.0 / lambda;
+    float mean = mc * (z * cdf + pdf / k);
+    // The grazing mean from the truncated moments of n·w (material::ClampedCosineGrazingMean).
+    float m = z * mc, s2 = (1.0 - z * z) / lambda + 1.0 / (lambda * lambda), s = sqrt(s2);
+    float xs = m / s;
+    float es = 0.5 * erfcPositive(abs(xs) * 0.70710678);
+    float m0 = xs >= 0.0 ? 1.0 - es : es;
+    float m1 = m * m0 + s * 0.39894228 * exp(-0.5 * xs * xs);
+    float m2 = m * m1 + s2 * m0;
+    float m3 = m * m2 + 2.0 * s2 * m1;
+    float m4 = m * m3 + 3.0 * s2 * m2;
+    float m5 = m * m4 + 4.0 * s2 * m3;
+    float m6 = m * m5 + 5.0 * s2 * m4;
+    return vec2(mean, max(m1 - 5.0 * m2 + 10.0 * m3 - 10.0 * m4 + 5.0 * m5 - m6, 0.0));
+  }
+  float row = lambda / (lambda + kCosineKappa) / (kCosineLambdaMax / (kCosineLambdaMax + kCosineKappa)) *
+              float(kCosineRows - 1);
+  int r = min(int(row), kCosineRows - 2);
+  float col = (z + 1.0) * 0.5 * float(kCosineZ - 1);
+  int c = clamp(int(col), 0, kCosineZ - 2);
+  float fr = row - float(r), fc = col - float(c);
+  int i = r * kCosineZ + c;
+  return mix(mix(cosineTable[i], cosineTable[i + 1], fc), mix(cosineTable[i + kCosineZ], cosineTable[i + kCosineZ + 1], fc),
+             fr);
+}
+
+float clampedCosineMean(float z, float lambda) { return clampedCosineMeans(z, lambda).x; }
+
+// ∫ max(0, n·w) G(w) for a unit SG (material::ClampedCosineIntegral).
+float clampedCosineIntegral(vec3 n, vec3 axis, float lambda) {
+  return clampedCosineMean(dot(n, axis), lambda) * sgIntegral(lambda);
+}
+
 // Compile-time bounds, so that every loop over cones and peaks unrolls and their arrays stay in
 // registers: indexed by a loop variable, an array becomes a chain of selects on llvmpipe (70x
 // slower, measured). The renderer compiles one variant per ring count.
@@ -113,6 +173,9 @@ struct ConeSet {
   int count;
   float lambda;  // of every cone's SG (eq. 4.12)
   bool all_visible;
+  // Clamped-cosine lobes: ∫ max(0, n·w) V_i / ∫ G_cos V_i per cone (coneCosineRatios), so that
+  // the visible share weights the cones by the cosine itself; 1 for every other lobe.
+  float cosine_ratio[kMaxCones];
 };
 
 void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
@@ -147,6 +210,18 @@ void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
     if (i < set.count) set.all_visible = set.all_visible && set.visibility[i] >= 1.0;
 }
 
+// The triple_product_reference.cpp ConeCosineRatios: the SG stand-in of the cosine is 17 % high
+// at the normal and half the cosine's value at 80°, so its products alone would weight the
+// cones wrongly.
+void coneCosineRatios(vec3 n, bool cosine, inout ConeSet set) {
+  for (int i = 0; i < kMaxCones; ++i) {
+    set.cosine_ratio[i] = 1.0;
+    if (!cosine || i >= set.count) continue;
+    float sg = sgIntegral2(n, kCosineSgLambda, set.axis[i], set.lambda);
+    set.cosine_ratio[i] = sg > 0.0 ? clampedCosineIntegral(n, set.axis[i], set.lambda) / sg : 0.0;
+  }
+}
+
 // The visible share of ∫ G_lobe G_light over the cones: Σ v_i ∫P V_i / Σ ∫P V_i with
 // P = G_lobe G_light and V_i the cone SGs. The exponents are rescaled on the fly (as an online
 // softmax) so that sharp products far from every cone do not underflow to 0/0.
@@ -161,7 +236,7 @@ float visibleShare(SgProduct prod, in ConeSet set) {
       den *= s;
       top = q.log_amplitude;
     }
-    float w = exp(q.log_amplitude - top) * sgShape(q.lambda);
+    float w = exp(q.log_amplitude - top) * sgShape(q.lambda) * set.cosine_ratio[i];
     num += w * set.visibility[i];
     den += w;
   }
@@ -192,6 +267,8 @@ ivec2 overlapRange(vec3 axis_world, float lambda) {
 // principled diffuse's retro-reflection), integrated against a product SG: an SG's mean direction
 // is its axis times coth λ − 1/λ (material::LinearFactor).
 vec3 gLinear;
+bool gCosine;  // the lobe being shaded is a clamped cosine around gCosineNormal
+vec3 gCosineNormal;
 
 float linearFactor(SgProduct p) {
   if (gLinear == vec3(0.0)) return 1.0;
@@ -199,12 +276,26 @@ float linearFactor(SgProduct p) {
   return 1.0 + dot(gLinear, p.axis) * m;
 }
 
+vec3 gGrazing;  // and its grazing factor (material::Lobe::grazing) of x = gView·wi
+vec3 gView;
+
+// material::ClampedCosineLobeIntegral against a unit light SG; p: the lobe's SG stand-in times it.
+float clampedCosineLobeIntegral(vec3 axis, float lambda, SgProduct p) {
+  vec2 m = clampedCosineMeans(dot(gCosineNormal, axis), lambda);
+  if (gLinear == vec3(0.0) && gGrazing == vec3(0.0)) return m.x * sgIntegral(lambda);
+  vec3 mean_direction = p.axis * (p.lambda < 1e-3 ? p.lambda / 3.0 : 1.0 / tanh(p.lambda) - 1.0 / p.lambda);
+  float x = dot(gView, mean_direction);
+  return (m.x * (1.0 + dot(gLinear, mean_direction)) + m.y * (gGrazing.x + x * (gGrazing.y + x * gGrazing.z))) *
+         sgIntegral(lambda);
+}
+
 // One lighting SG's contribution to a lobe: unshadowed ∫ G_lobe G_light (unit amplitudes) times
 // the visible share.
 void addLight(vec3 lobe_axis, float lobe_lambda, vec3 axis, float lambda, vec3 amplitude, in ConeSet set,
               inout vec3 shaded, inout vec3 unshadowed, inout uvec4 count) {
   SgProduct prod = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
-  float full = kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda) * linearFactor(prod);
+  float full = gCosine ? clampedCosineLobeIntegral(axis, lambda, prod)
+                       : kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda) * linearFactor(prod);
   float share = 1.0;
   if (!set.all_visible) {
     share = visibleShare(prod, set);
@@ -233,17 +324,11 @@ void shadeLobe(vec3 lobe_axis, float lobe_lambda, in ConeSet set, inout vec3 sha
                shaded, unshadowed, count);
 }
 
-// Peaks with their own cones: Σ_p μ_p ∫ G_lobe G_p · v_p. A sharp peak is a directional light
-// for the clamped-cosine lobe: its SG fit is 17 % high at normal incidence and 11–19 % low at
-// 45–70°, where a sun lights most surfaces, so the exact max(0, n·c_p) ∫G_p replaces it there
-// (the lobe's weight holds the fit's amplitude, hence the division).
-const float kSharpPeakLambda = 50.0;
-
+// Peaks with their own cones: Σ_p μ_p ∫ G_lobe G_p · v_p (the clamped cosine exactly).
 float peakIntegral(vec3 lobe_axis, float lobe_lambda, bool cosine, vec3 axis, float lambda) {
-  if (cosine && lambda >= kSharpPeakLambda)
-    return max(dot(lobe_axis, axis), 0.0) * sgIntegral(lambda) / kCosineSgAmplitude * (1.0 + dot(gLinear, axis));
   SgProduct p = sgProduct(lobe_axis, lobe_lambda, axis, lambda);
-  return kTwoPi * exp(p.log_amplitude) * sgShape(p.lambda) * linearFactor(p);
+  return cosine ? clampedCosineLobeIntegral(axis, lambda, p)
+                : kTwoPi * exp(p.log_amplitude) * sgShape(p.lambda) * linearFactor(p);
 }
 
 void shadePeaks(vec3 lobe_axis, float lobe_lambda, bool cosine, in float peak_visibility[kMaxPeaks],
@@ -277,6 +362,9 @@ ConeSet gSet;
 
 void emitLobe(vec3 axis, float lambda, vec3 weight, bool cosine) {
   traceLobeCones(axis, lambda, gOrigin, gSet);
+  gCosine = cosine;
+  gCosineNormal = axis;
+  coneCosineRatios(axis, cosine, gSet);
   vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
   shadeLobe(axis, lambda, gSet, shaded, unshadowed, gCount);
   shadePeaks(axis, lambda, cosine, gPeakVisibility, shaded, unshadowed);
@@ -291,6 +379,9 @@ void main() {
   uint index = uint(pixel.y * uSize.x + pixel.x);
   gCount = uvec4(0);
   gLinear = vec3(0.0);
+  gGrazing = vec3(0.0);
+  gCosine = false;
+  gCosineNormal = vec3(0.0, 1.0, 0.0);
   vec4 gp = imageLoad(uGPosition, pixel);
   vec4 car = vec4(0.0);
   vec4 shadow = vec4(1.0, 1.0, 1.0, 0.0);
@@ -312,6 +403,8 @@ void main() {
         bool cosine;
         if (termLobe(t, i, n, wo, axis, lambda, weight, cosine)) {
           gLinear = cosine ? t.cosine_linear : vec3(0.0);
+          gGrazing = cosine ? t.cosine_grazing : vec3(0.0);
+          gView = wo;
           emitLobe(axis, lambda, weight, cosine);
         }
       }
@@ -325,6 +418,9 @@ void main() {
       p.y = 0.0;
       const vec3 up = vec3(0, 1, 0);
       traceLobeCones(up, kCosineSgLambda, p, gSet);
+      gCosine = true;
+      gCosineNormal = up;
+      coneCosineRatios(up, true, gSet);
       tracePeakCones(p, gPeakVisibility, gCount);
       gCount.y += uint(gSet.count);
       bool lit = gSet.all_visible;

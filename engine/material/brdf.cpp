@@ -180,7 +180,7 @@ void PushWarped(const Sg& d, MOf&& m_of, const ShadingFrame& f, const glm::dvec3
 
 void LobesOf(const Lambertian& m, const ShadingFrame& f, const glm::dvec3&, const LobeOptions&,
              std::vector<Lobe>* out) {
-  out->push_back({CosineSg(f.n), m.albedo / kPi});
+  out->push_back({CosineSg(f.n), m.albedo / kPi, glm::dvec3(0), true});
 }
 
 void LobesOf(const Phong& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
@@ -242,11 +242,16 @@ void LobesOf(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3
   const MrParams p = FromMetallicRoughness(m);
   // f_d's retro-reflection at grazing views, FV r (1 + wi·wo), is linear in wi: the Lambertian
   // lobe carries it as (a0 + a1 wo·wi) with a1 = FV r, and a0 keeps the directional albedo.
-  const double mu = glm::dot(f.n, wo);
-  const double a1 = std::pow(1.0 - std::clamp(mu, 0.0, 1.0), 5.0) * p.roughness;
-  const double a0 = PrincipledDiffuseAlbedo(mu, p.roughness) - a1 * 2.0 * mu / 3.0;
+  // With x = wi·wo, f_d π = (1 − FV/2) + r FV (1 + x) + FL B(x), B(x) = −(1 − FV/2)/2 +
+  // r (1 − FV)(1 + x) + r² FV (1 + x)²: a0 + a1 x exactly, and FL B(x) as the grazing factor.
+  const double mu = glm::dot(f.n, wo), r = p.roughness;
+  const double fv = std::pow(1.0 - std::clamp(mu, 0.0, 1.0), 5.0);
+  const double a1 = fv * r, a0 = 1.0 - 0.5 * fv + fv * r;
+  const glm::dvec3 b(-0.5 * (1.0 - 0.5 * fv) + r * (1.0 - fv) + r * r * fv, r * (1.0 - fv) + 2.0 * r * r * fv,
+                     r * r * fv);
   const glm::dvec3 diffuse = p.c_diff * (a0 / kPi);
-  if (diffuse.x > 0 || diffuse.y > 0 || diffuse.z > 0) out->push_back({CosineSg(f.n), diffuse, (a1 / a0) * wo});
+  if (diffuse.x > 0 || diffuse.y > 0 || diffuse.z > 0)
+    out->push_back({CosineSg(f.n), diffuse, (a1 / a0) * wo, true, b / a0, wo});
   PushCookTorrance(p.f0, p.alpha, Ndf::kGgx, f, wo, o, out);
 }
 
@@ -332,6 +337,128 @@ std::vector<Lobe> Lobes(const Brdf& brdf, const ShadingFrame& frame, const glm::
   return lobes;
 }
 
+namespace {
+
+// e^{−x} I0(x) for x ≥ 0 (Abramowitz & Stegun 9.8.1–9.8.2, relative error < 2·10⁻⁷).
+double ScaledBesselI0(double x) {
+  if (x <= 3.75) {
+    const double t = (x / 3.75) * (x / 3.75);
+    return std::exp(-x) *
+           (1 +
+            t * (3.5156229 + t * (3.0899424 + t * (1.2067492 + t * (0.2659732 + t * (0.0360768 + t * 0.0045813))))));
+  }
+  const double t = 3.75 / x;
+  return (0.39894228 +
+          t * (0.01328592 +
+               t * (0.00225319 +
+                    t * (-0.00157565 +
+                         t * (0.00916281 +
+                              t * (-0.02057706 + t * (0.02635537 + t * (-0.01647633 + t * 0.00392377)))))))) /
+         std::sqrt(x);
+}
+
+// ∫ G max(0, n·w) / ∫ G by quadrature. With n the pole (w at polar angle α, azimuth φ from the
+// plane of n and c), ∫ e^{λ(z cos α + s sin α cos φ − 1)} dφ = 2π e^{λ(z cos α − 1)} I0(λ s sin α),
+// s = sin θ, leaving ∫₀^{π/2} … cos α sin α dα: a midpoint rule of 128 steps (λ ≤ 64, so the
+// SG is at least 1/8 rad wide).
+double ClampedCosineMeanByQuadrature(double z, double lambda, bool grazing) {
+  const double s = std::sqrt(std::max(0.0, 1 - z * z));
+  constexpr int kSteps = 128;
+  double sum = 0;
+  for (int i = 0; i < kSteps; ++i) {
+    const double a = (i + 0.5) * (kPi / 2) / kSteps;
+    const double x = lambda * s * std::sin(a);
+    const double fl = grazing ? std::pow(1 - std::cos(a), 5.0) : 1.0;
+    sum += std::exp(lambda * (z * std::cos(a) - 1) + x) * ScaledBesselI0(x) * std::cos(a) * std::sin(a) * fl;
+  }
+  sum *= 2 * kPi * (kPi / 2) / kSteps;
+  const double integral = lambda < 1e-9 ? 4 * kPi : 2 * kPi * -std::expm1(-2 * lambda) / lambda;
+  return sum / integral;
+}
+
+double RowLambda(int row) {
+  const double q = double(row) / (kClampedCosineRows - 1) *
+                   (kClampedCosineLambdaMax / (kClampedCosineLambdaMax + kClampedCosineKappa));
+  return kClampedCosineKappa * q / (1 - q);
+}
+
+}  // namespace
+
+const std::vector<double>& ClampedCosineTable() {
+  static const std::vector<double> table = [] {
+    const std::size_t block = static_cast<std::size_t>(kClampedCosineRows) * kClampedCosineZ;
+    std::vector<double> t(2 * block);
+    for (int r = 0; r < kClampedCosineRows; ++r)
+      for (int i = 0; i < kClampedCosineZ; ++i) {
+        const std::size_t k = static_cast<std::size_t>(r) * kClampedCosineZ + i;
+        const double z = -1.0 + 2.0 * i / (kClampedCosineZ - 1);
+        t[k] = ClampedCosineMeanByQuadrature(z, RowLambda(r), false);
+        t[block + k] = ClampedCosineMeanByQuadrature(z, RowLambda(r), true);
+      }
+    return t;
+  }();
+  return table;
+}
+
+namespace {
+
+// The two columns of ClampedCosineTable: FL = 0 (the mean) or 1 (the grazing mean).
+double ClampedCosineLookup(double z, double lambda, int column) {
+  z = std::clamp(z, -1.0, 1.0);
+  lambda = std::max(lambda, 0.0);
+  if (lambda >= kClampedCosineLambdaMax) {
+    // Near the horizon X = n·w ~ N(z, 1/λ): E[X⁺] = z Φ + φ/√λ.
+    const double k = std::sqrt(lambda), x = z * k;
+    const double cdf = 0.5 * std::erfc(-x / std::sqrt(2.0)), pdf = std::exp(-0.5 * x * x) / std::sqrt(2 * kPi);
+    if (column == 0) return SgMeanCosine(lambda) * (z * cdf + pdf / k);
+    // FL = (1 − X)⁵ against X⁺ needs X's spread along n: X ~ N(z (coth λ − 1/λ), (1 − z²)/λ +
+    // 1/λ²), and Σ_j C(5, j) (−1)^j E[X⁺ X^j] by the truncated moments M_j = E[X^j; X > 0]:
+    // M_0 = Φ, M_1 = m Φ + σ φ, M_j = m M_{j−1} + (j − 1) σ² M_{j−2}. Within 2 % where it matters.
+    const double m = z * SgMeanCosine(lambda), s2 = (1 - z * z) / lambda + 1 / (lambda * lambda), s = std::sqrt(s2);
+    const double xs = m / s;
+    const double phi = std::exp(-0.5 * xs * xs) / std::sqrt(2 * kPi);
+    double moments[7];
+    moments[0] = 0.5 * std::erfc(-xs / std::sqrt(2.0));
+    moments[1] = m * moments[0] + s * phi;
+    for (int j = 2; j < 7; ++j) moments[j] = m * moments[j - 1] + (j - 1) * s2 * moments[j - 2];
+    constexpr double kBinomial[6] = {1, -5, 10, -10, 5, -1};
+    double fl = 0;
+    for (int j = 0; j < 6; ++j) fl += kBinomial[j] * moments[j + 1];
+    return std::max(fl, 0.0);
+  }
+  const double* t =
+      ClampedCosineTable().data() + static_cast<std::size_t>(column) * kClampedCosineRows * kClampedCosineZ;
+  const double row = lambda / (lambda + kClampedCosineKappa) /
+                     (kClampedCosineLambdaMax / (kClampedCosineLambdaMax + kClampedCosineKappa)) *
+                     (kClampedCosineRows - 1);
+  const int r = std::min(static_cast<int>(row), kClampedCosineRows - 2);
+  const double col = (z + 1) / 2 * (kClampedCosineZ - 1);
+  const int c = std::clamp(static_cast<int>(col), 0, kClampedCosineZ - 2);
+  const double fr = row - r, fc = col - c;
+  const auto at = [&](int rr, int cc) { return t[static_cast<std::size_t>(rr) * kClampedCosineZ + cc]; };
+  return (1 - fr) * ((1 - fc) * at(r, c) + fc * at(r, c + 1)) + fr * ((1 - fc) * at(r + 1, c) + fc * at(r + 1, c + 1));
+}
+
+}  // namespace
+
+double ClampedCosineMean(double z, double lambda) { return ClampedCosineLookup(z, lambda, 0); }
+double ClampedCosineGrazingMean(double z, double lambda) { return ClampedCosineLookup(z, lambda, 1); }
+
+double ClampedCosineLobeIntegral(const Lobe& lobe, const Sg& g, const Sg& product) {
+  const double z = glm::dot(lobe.sg.axis, g.axis);
+  const double integral = lighting::Integral(g);
+  double i = ClampedCosineMean(z, g.lambda) * LinearFactor(lobe.linear, product);
+  if (lobe.grazing != glm::dvec3(0)) {
+    const double x = glm::dot(lobe.view, product.axis) * SgMeanCosine(product.lambda);
+    i += ClampedCosineGrazingMean(z, g.lambda) * (lobe.grazing.x + x * (lobe.grazing.y + x * lobe.grazing.z));
+  }
+  return i * integral;
+}
+
+double ClampedCosineIntegral(const glm::dvec3& n, const Sg& g) {
+  return ClampedCosineMean(glm::dot(n, g.axis), g.lambda) * lighting::Integral(g);
+}
+
 double SgMeanCosine(double lambda) { return lambda < 1e-3 ? lambda / 3.0 : 1.0 / std::tanh(lambda) - 1.0 / lambda; }
 
 double LinearFactor(const glm::dvec3& linear, const Sg& product) {
@@ -342,11 +469,16 @@ double LinearFactor(const glm::dvec3& linear, const Sg& product) {
 glm::dvec3 ShadeUnderSgLight(std::span<const Lobe> lobes, const lighting::RgbSg& light, const Sg* visibility) {
   const Sg l{light.axis, light.lambda, 1.0};
   glm::dvec3 sum(0);
+  const Sg lit = visibility ? lighting::Product(l, *visibility) : l;
   for (const Lobe& lobe : lobes) {
-    const double i =
-        visibility ? lighting::IntegralOfProduct(lobe.sg, l, *visibility) : lighting::IntegralOfProduct(lobe.sg, l);
     Sg product = lighting::Product(lobe.sg, l);
     if (visibility) product = lighting::Product(product, *visibility);
+    if (lobe.clamped_cosine) {
+      sum += lobe.weight * ClampedCosineLobeIntegral(lobe, lit, product);
+      continue;
+    }
+    const double i =
+        visibility ? lighting::IntegralOfProduct(lobe.sg, l, *visibility) : lighting::IntegralOfProduct(lobe.sg, l);
     sum += lobe.weight * (i * LinearFactor(lobe.linear, product));
   }
   return sum * glm::dvec3(light.amplitude);

@@ -20,9 +20,13 @@
 //   evaluated at the warped axis wi = c', where it is smooth compared with D.
 // - The cosine max(0, n·wi): for lobes it is, by default, folded into the weight at the lobe axis
 //   (CosineTerm::kAtLobeAxis); CosineTerm::kAsSg multiplies the lobe by the clamped-cosine SG
-//   instead. The Lambertian lobe always *is* the clamped-cosine SG: λ = 2.133, μ = 1.170
-//   (Wang et al. 2009's fit of max(0, cos θ)), whose tail below the horizon is ≤ 0.139 and falls
-//   to 0.016 at the nadir: diffuse light from below leaks at that level.
+//   instead. The Lambertian lobe is the clamped cosine itself (Lobe::clamped_cosine): against an
+//   SG light (or the SG product of a light and a visibility SG) it integrates exactly, through
+//   ClampedCosineMean, a table of the 2D function ∫ G max(0, n·w) / ∫ G. Its SG stand-in, λ =
+//   2.133, μ = 1.170 (Wang et al. 2009's fit of max(0, cos θ)), only places the lobe for what
+//   needs an SG: the visibility cones and their weights, the overlap bins, the linear factor's mean
+//   direction. That fit alone would be 17 % high at the normal, 19 % low at 60°, 8 % high over
+//   the sphere, and leak 1.6–14 % of the zenith response below the horizon.
 // - Phong's lobe already lives around the reflected direction r = 2(n·wo)n − wo: cosⁿ(r·wi) ≈
 //   SG(r, λ = n) with no warp. Blinn-Phong: (n·h)^s ≈ SG(h; n, λ = s), then the warp.
 // - Ward: exp(−tan²θ_h/α²) ≈ SG(h; n, λ = 2/α²) (equal curvature at the peak). Anisotropic:
@@ -42,17 +46,19 @@
 //   retro-reflection of rough surfaces brightens grazing views and light from behind the viewer.
 //   The Principled BSDF adds its specular layer on top of the diffuse one, without the glTF
 //   spec's (1 − F) on the diffuse: measured against Cycles, a Lambertian (1 − F) diffuse was
-//   9–12 % dark on the diffuse paints (docs/benchmarks/render_accuracy.md). The lobes: the Lambertian
-//   lobe weighted by f_d's directional albedo at wo (PrincipledDiffuseAlbedo), its retro-reflection
-//   at grazing views FV r (1 + wi·wo) kept exactly as the lobe's linear factor (Lobe::linear;
-//   the FL terms, light at grazing incidence, enter the albedo only), plus the GGX lobe.
+//   9–12 % dark on the diffuse paints (docs/benchmarks/render_accuracy.md). The lobes: the clamped
+//   cosine with f_d's terms constant in FL as its weight and exact linear factor (Lobe::linear:
+//   the retro-reflection at grazing views FV r (1 + wi·wo)), the FL terms (light at grazing
+//   incidence) as its grazing factor (Lobe::grazing, integrated through ClampedCosineGrazingMean,
+//   wi·wo taken at the mean direction), plus the GGX lobe.
 //
 // What that costs (brdf_test.cpp prints the table; SG light λ 10–1000, views 0–75°, error against
 // quadrature): with a light aimed at the mirror direction 0.03 % (Phong n = 10⁴) to ~50 % (GGX,
 // whose peak is sharper and tails heavier than any one SG); with the light 25° off it, up to
 // ~100 % for glossy lobes, because eq. 4.10's isotropic lobe is too narrow in the plane of
-// incidence — WarpMode::kAnisotropicSplit cuts those to ~30 %. Lambertian: ≤ 18 % (the SG's peak
-// is 1.17). At grazing views (85–89°) the cosine at the axis goes to 0 and the errors are O(1).
+// incidence — WarpMode::kAnisotropicSplit cuts those to ~30 %. Lambertian: ≤ 0.3 % (the table's
+// interpolation). At grazing views (85–89°) the cosine at the axis goes to 0 and the errors of
+// the glossy lobes are O(1).
 #include <glm/vec3.hpp>
 #include <span>
 #include <variant>
@@ -69,6 +75,14 @@ inline constexpr int kMaxAnisotropicLobes = 15;
 // Wang et al. 2009's single-SG fit of the clamped cosine max(0, n·w).
 inline constexpr double kCosineSgLambda = 2.133;
 inline constexpr double kCosineSgAmplitude = 1.170;
+// ClampedCosineMean's table: kClampedCosineZ values of z = n·c on [−1, 1] (uniform) per row,
+// kClampedCosineRows rows of λ on [0, kClampedCosineLambdaMax] uniform in λ/(λ + κ), κ =
+// kClampedCosineKappa (dense at small λ, where the mean changes fastest). Measured against
+// quadrature: ≤ 0.3 % relative where the mean is over 5 % of its peak, ≤ 10⁻³ absolute.
+inline constexpr int kClampedCosineZ = 129;
+inline constexpr int kClampedCosineRows = 33;
+inline constexpr double kClampedCosineLambdaMax = 64;
+inline constexpr double kClampedCosineKappa = 8;
 
 // The surface frame: n the normal; t, b the tangent and bitangent (only anisotropic Ward uses
 // them). Right-handed and orthonormal: b = n × t.
@@ -125,10 +139,16 @@ using Brdf = std::variant<Lambertian, Phong, BlinnPhong, Ward, CookTorrance, Met
 // One term of the lobe sum: weight ⊙ G(wi; sg) (1 + linear·wi). The linear factor's integral
 // against an SG light is exact: ∫ P (1 + ℓ·wi) = ∫P (1 + ℓ·c_P SgMeanCosine(λ_P)) for the product
 // P of lobe and light (axis c_P, λ_P), since an SG's mean direction is c (coth λ − 1/λ).
+// A clamped-cosine lobe (the diffuse ones) is instead, with n = sg.axis and x = view·wi,
+//   weight ⊙ max(0, n·wi) [1 + linear·wi + (1 − n·wi)⁵ (grazing₀ + grazing₁ x + grazing₂ x²)],
+// integrated by ClampedCosineLobeIntegral; `sg` is then CosineSg(n), its SG stand-in.
 struct Lobe {
   lighting::Sg sg;
   glm::dvec3 weight{1};
   glm::dvec3 linear{0};
+  bool clamped_cosine = false;
+  glm::dvec3 grazing{0};  // Burley's FL terms (MetallicRoughness), relative to weight
+  glm::dvec3 view{0};
 };
 
 enum class CosineTerm { kAtLobeAxis, kAsSg };
@@ -172,6 +192,24 @@ lighting::Sg WarpToIncident(const lighting::Sg& half_vector_lobe, const glm::dve
 lighting::Sg CosineSg(const glm::dvec3& n);
 // coth λ − 1/λ: the mean of c·w under an SG of axis c and sharpness λ.
 double SgMeanCosine(double lambda);
+// The clamped cosine's mean under an SG of sharpness λ whose axis is at cos θ = z from n:
+// ∫ G(w; c, λ) max(0, n·w) dw / ∫ G(w; c, λ). 1/4 at λ = 0; → max(0, z) as λ → ∞. Interpolated
+// in ClampedCosineTable up to kClampedCosineLambdaMax; beyond, the SG is a narrow Gaussian
+// against a nearly planar horizon: (coth λ − 1/λ)(z Φ(z√λ) + φ(z√λ)/√λ), within 1 % there.
+double ClampedCosineMean(double z, double lambda);
+// The same with Burley's grazing-light weight FL = (1 − n·w)⁵: ∫ G max(0, n·w) FL / ∫ G. Beyond
+// the table, from the truncated moments of n·w as a Gaussian.
+double ClampedCosineGrazingMean(double z, double lambda);
+// The table: kClampedCosineRows rows of kClampedCosineZ of ClampedCosineMean, then as many of
+// ClampedCosineGrazingMean; computed once by quadrature, the shader interpolates the same numbers.
+const std::vector<double>& ClampedCosineTable();
+// ∫ max(0, n·w) G(w) dw for an SG G (its amplitude included).
+double ClampedCosineIntegral(const glm::dvec3& n, const lighting::Sg& g);
+// ∫ of a clamped-cosine lobe (without its weight) against the SG g (amplitude included). Its
+// linear and grazing factors are taken at the mean direction of `product`, the lobe's SG stand-in
+// times the light: exact for the linear one (as LinearFactor), for the quadratic grazing one
+// exact for a sharp light and within 1.5 % of the directional albedo under a uniform one.
+double ClampedCosineLobeIntegral(const Lobe& lobe, const lighting::Sg& g, const lighting::Sg& product);
 // 1 + linear·(the product's mean direction): a lobe's linear factor integrated against `product`.
 double LinearFactor(const glm::dvec3& linear, const lighting::Sg& product);
 // Cycles' principled diffuse (Burley 2015) relative to Lambert's 1/π: f_d π for n·wi, n·wo and

@@ -19,6 +19,7 @@ using lighting::Sg;
 struct ConeSet {
   std::vector<visibility::Cone> cones;
   std::vector<double> visibility;
+  std::vector<double> cosine_ratio;  // per cone; empty but for clamped-cosine lobes
   double lambda = 0;
   bool all_visible = true;
 };
@@ -37,7 +38,22 @@ double GroundLit(const glm::dvec3& p, const glm::dvec3& dir, const ReferenceInpu
       });
 }
 
-ConeSet TraceLobeCones(const Sg& lobe, const glm::dvec3& p, const ReferenceInputs& in) {
+// render_shade.comp's coneCosineRatios: how much of a clamped-cosine lobe a cone holds against
+// how much of its SG stand-in, ∫ max(0, n·w) V_i / ∫ G_cos V_i, so that the visible share weights
+// the cones by the cosine itself (the stand-in is 17 % high at the normal, half the cosine's
+// value at 80°).
+std::vector<double> ConeCosineRatios(const glm::dvec3& n, const ConeSet& set) {
+  std::vector<double> r;
+  const Sg cosine{n, material::kCosineSgLambda, 1.0};
+  for (const auto& c : set.cones) {
+    const Sg v{c.axis, set.lambda, 1.0};
+    const double sg = lighting::IntegralOfProduct(cosine, v);
+    r.push_back(sg > 0 ? material::ClampedCosineIntegral(n, v) / sg : 0.0);
+  }
+  return r;
+}
+
+ConeSet TraceLobeCones(const Sg& lobe, bool cosine, const glm::dvec3& p, const ReferenceInputs& in) {
   visibility::ConeSubsampleOptions co = in.options.cones;
   co.rings = in.options.cone_rings;
   ConeSet set;
@@ -51,6 +67,7 @@ ConeSet TraceLobeCones(const Sg& lobe, const glm::dvec3& p, const ReferenceInput
     set.visibility.push_back(v);
     set.all_visible = set.all_visible && v >= 1.0;
   }
+  if (cosine) set.cosine_ratio = ConeCosineRatios(lobe.axis, set);
   return set;
 }
 
@@ -76,8 +93,11 @@ double VisibleShare(const Sg& product, const ConeSet& set) {
     // ∫ of a unit SG of λ is 2π (1 − e^{−2λ})/λ.
     const double shape = q.lambda < 1e-6 ? 2.0 : -std::expm1(-2.0 * q.lambda) / q.lambda;
     log_w[i] = q.log_amplitude + std::log(shape);
+    if (!set.cosine_ratio.empty())
+      log_w[i] += set.cosine_ratio[i] > 0 ? std::log(set.cosine_ratio[i]) : -std::numeric_limits<double>::infinity();
     top = std::max(top, log_w[i]);
   }
+  if (!(top > -std::numeric_limits<double>::infinity())) return set.visibility.front();
   double num = 0, den = 0;
   for (std::size_t i = 0; i < set.cones.size(); ++i) {
     const double w = std::exp(log_w[i] - top);
@@ -87,13 +107,22 @@ double VisibleShare(const Sg& product, const ConeSet& set) {
   return den > 0 ? num / den : set.visibility.front();
 }
 
-void AddLight(const Sg& lobe, const glm::dvec3& linear, const lighting::RgbSg& light, const ConeSet& set,
-              glm::dvec3* shaded, glm::dvec3* unshadowed, PixelCounts* count) {
+// The unshadowed ∫ lobe × light (the lobe's SG of unit amplitude, or for a clamped-cosine lobe
+// material::ClampedCosineLobeIntegral), without the lobe's weight.
+double FullIntegral(const material::Lobe& lobe, const Sg& l) {
+  const Sg unit{lobe.sg.axis, lobe.sg.lambda, 1.0};
+  const Sg product = lighting::Product(unit, l);
+  if (lobe.clamped_cosine) return material::ClampedCosineLobeIntegral(lobe, l, product);
+  return lighting::IntegralOfProduct(unit, l) * material::LinearFactor(lobe.linear, product);
+}
+
+void AddLight(const material::Lobe& lobe, const lighting::RgbSg& light, const ConeSet& set, glm::dvec3* shaded,
+              glm::dvec3* unshadowed, PixelCounts* count) {
   const Sg l{light.axis, light.lambda, 1.0};
-  const double full = lighting::IntegralOfProduct(lobe, l) * material::LinearFactor(linear, lighting::Product(lobe, l));
+  const double full = FullIntegral(lobe, l);
   double share = 1;
   if (!set.all_visible) {
-    const LogProduct prod = ProductLog(lobe.axis, lobe.lambda, l.axis, l.lambda);
+    const LogProduct prod = ProductLog(lobe.sg.axis, lobe.sg.lambda, l.axis, l.lambda);
     share = VisibleShare(Sg{prod.axis, prod.lambda, 1.0}, set);
     count->triples += static_cast<unsigned>(set.cones.size());
   }
@@ -102,37 +131,27 @@ void AddLight(const Sg& lobe, const glm::dvec3& linear, const lighting::RgbSg& l
   count->sgs += 1;
 }
 
-void ShadeLobe(const Sg& lobe, const glm::dvec3& linear, const ConeSet& set, const ReferenceInputs& in,
-               glm::dvec3* shaded, glm::dvec3* unshadowed, PixelCounts* count) {
+void ShadeLobe(const material::Lobe& lobe, const ConeSet& set, const ReferenceInputs& in, glm::dvec3* shaded,
+               glm::dvec3* unshadowed, PixelCounts* count) {
   const PreparedLighting& L = *in.lighting;
-  if (L.constant != glm::vec3(0)) AddLight(lobe, linear, {{0, 1, 0}, 0.0, L.constant}, set, shaded, unshadowed, count);
+  if (L.constant != glm::vec3(0)) AddLight(lobe, {{0, 1, 0}, 0.0, L.constant}, set, shaded, unshadowed, count);
   if (in.bins && !L.srbfs.empty()) {
-    for (int g : in.bins->Query(L.env_from_world * lobe.axis, lobe.lambda)) {
+    for (int g : in.bins->Query(L.env_from_world * lobe.sg.axis, lobe.sg.lambda)) {
       const auto& s = L.srbfs[static_cast<std::size_t>(g)];
       if (s.amplitude == glm::vec3(0)) continue;
-      AddLight(lobe, linear, s, set, shaded, unshadowed, count);
+      AddLight(lobe, s, set, shaded, unshadowed, count);
     }
   }
   const std::size_t first = in.options.peak_cones ? TripleProductRenderer::kMaxPeakCones : 0;
-  for (std::size_t k = first; k < L.peaks.size(); ++k)
-    AddLight(lobe, linear, L.peaks[k], set, shaded, unshadowed, count);
+  for (std::size_t k = first; k < L.peaks.size(); ++k) AddLight(lobe, L.peaks[k], set, shaded, unshadowed, count);
 }
 
-// render_shade.comp's peakIntegral: a sharp peak meets the clamped-cosine lobe as a directional
-// light against the exact cosine.
-constexpr double kSharpPeakLambda = 50;
-
-void ShadePeaks(const Sg& lobe, const glm::dvec3& linear, bool cosine, const std::vector<double>& peak_visibility,
-                const ReferenceInputs& in, glm::dvec3* shaded, glm::dvec3* unshadowed) {
+void ShadePeaks(const material::Lobe& lobe, const std::vector<double>& peak_visibility, const ReferenceInputs& in,
+                glm::dvec3* shaded, glm::dvec3* unshadowed) {
   if (!in.options.peak_cones) return;
   const auto& peaks = in.lighting->peaks;
   for (std::size_t k = 0; k < std::min<std::size_t>(peaks.size(), TripleProductRenderer::kMaxPeakCones); ++k) {
-    const Sg peak{peaks[k].axis, peaks[k].lambda, 1.0};
-    const bool sharp = cosine && peak.lambda >= kSharpPeakLambda;
-    const double full =
-        sharp ? std::max(glm::dot(lobe.axis, peak.axis), 0.0) * lighting::Integral(peak) /
-                    material::kCosineSgAmplitude * (1.0 + glm::dot(linear, peak.axis))
-              : lighting::IntegralOfProduct(lobe, peak) * material::LinearFactor(linear, lighting::Product(lobe, peak));
+    const double full = FullIntegral(lobe, Sg{peaks[k].axis, peaks[k].lambda, 1.0});
     *shaded += glm::dvec3(peaks[k].amplitude) * (full * peak_visibility[k]);
     *unshadowed += glm::dvec3(peaks[k].amplitude) * full;
   }
@@ -202,13 +221,13 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
             glm::dvec3 radiance(0);
             for (const auto& lobe : lobes) {
               const Sg unit{lobe.sg.axis, lobe.sg.lambda, 1.0};
-              const ConeSet set = TraceLobeCones(unit, origin, in);
+              const bool cosine = lobe.clamped_cosine;
+              const ConeSet set = TraceLobeCones(unit, cosine, origin, in);
               glm::dvec3 shaded(0), unshadowed(0);
-              ShadeLobe(unit, lobe.linear, set, in, &shaded, &unshadowed, &count);
-              const bool cosine =
-                  lobe.sg.lambda == material::kCosineSgLambda && lobe.sg.amplitude == material::kCosineSgAmplitude;
-              ShadePeaks(unit, lobe.linear, cosine, peak_v, in, &shaded, &unshadowed);
-              radiance += lobe.weight * lobe.sg.amplitude * shaded;
+              ShadeLobe(lobe, set, in, &shaded, &unshadowed, &count);
+              ShadePeaks(lobe, peak_v, in, &shaded, &unshadowed);
+              // A clamped-cosine lobe's weight is the whole of it; an SG lobe's amplitude is apart.
+              radiance += lobe.weight * (cosine ? 1.0 : lobe.sg.amplitude) * shaded;
               count.lobes += 1;
               count.cones += static_cast<unsigned>(set.cones.size());
             }
@@ -223,16 +242,16 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
               continue;
             p.y = 0;
             result->ground_mask[idx] = 1.f;
-            const Sg up{{0, 1, 0}, material::kCosineSgLambda, 1.0};
-            const ConeSet set = TraceLobeCones(up, p, in);
+            const material::Lobe up{material::CosineSg({0, 1, 0}), glm::dvec3(1), glm::dvec3(0), true};
+            const ConeSet set = TraceLobeCones({up.sg.axis, up.sg.lambda, 1.0}, true, p, in);
             const std::vector<double> peak_v = TracePeakCones(p, in, &count);
             count.cones += static_cast<unsigned>(set.cones.size());
             bool lit = set.all_visible;
             for (double v : peak_v) lit = lit && v >= 1.0;
             if (lit) continue;
             glm::dvec3 shaded(0), unshadowed(0);
-            ShadeLobe(up, glm::dvec3(0), set, in, &shaded, &unshadowed, &count);
-            ShadePeaks(up, glm::dvec3(0), true, peak_v, in, &shaded, &unshadowed);
+            ShadeLobe(up, set, in, &shaded, &unshadowed, &count);
+            ShadePeaks(up, peak_v, in, &shaded, &unshadowed);
             count.lobes += 1;
             for (int c = 0; c < 3; ++c)
               result->shadow.rgb[3 * idx + c] =

@@ -190,16 +190,16 @@ detail::PreparedLighting Prepare(const lighting::SgLighting& model, const glm::d
   }
   p.sg_count += static_cast<int>(p.peaks.size());
   // The ground's irradiance (channels summed): the traced peaks' shares of it.
-  const lighting::Sg cosine = material::CosineSg(glm::dvec3(0, 1, 0));
+  const glm::dvec3 up(0, 1, 0);
   const auto sum = [](const glm::vec3& a) { return static_cast<double>(a.x + a.y + a.z); };
-  double total = sum(p.constant) * lighting::Integral(cosine);
+  double total = sum(p.constant) * material::ClampedCosineIntegral(up, {up, 0.0, 1.0});
   for (const auto& s : p.srbfs)
     if (s.amplitude != glm::vec3(0))
-      total += sum(s.amplitude) * lighting::IntegralOfProduct(cosine, {s.axis, s.lambda, 1.0});
+      total += sum(s.amplitude) * material::ClampedCosineIntegral(up, {s.axis, s.lambda, 1.0});
   std::vector<double> peak_e;
   for (std::size_t k = 0; k < p.peaks.size(); ++k) {
     const auto& pk = p.peaks[k];
-    const double e = sum(pk.amplitude) * lighting::Integral({pk.axis, pk.lambda, 1.0}) * std::max(pk.axis.y, 0.0);
+    const double e = sum(pk.amplitude) * material::ClampedCosineIntegral(up, {pk.axis, pk.lambda, 1.0});
     total += e;
     if (k < TripleProductRenderer::kMaxPeakCones) peak_e.push_back(e);
   }
@@ -370,7 +370,7 @@ struct TripleProductRenderer::Impl {
   std::map<std::pair<int, bool>, gl::Texture> textures;  // (image, sRGB)
   gl::Texture white{gl::NoCreate};
   detail::MaterialTerms material_terms;
-  gl::Buffer terms_buffer{gl::NoCreate}, ndf_table{gl::NoCreate};
+  gl::Buffer terms_buffer{gl::NoCreate}, ndf_table{gl::NoCreate}, cosine_table{gl::NoCreate};
 
   std::vector<glm::vec3> triangles;  // world
   scene::Bounds bounds;
@@ -532,6 +532,13 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
     table[i] = static_cast<float>(material::NdfSgLambda(a) * a * a);
   }
   im.ndf_table = MakeBuffer(table);
+  // The clamped cosine's two tables interleaved, so that the shader reads both with one vec2.
+  const std::vector<double>& cosine = material::ClampedCosineTable();
+  const std::size_t block = cosine.size() / 2;
+  std::vector<glm::vec2> interleaved(block);
+  for (std::size_t i = 0; i < block; ++i)
+    interleaved[i] = glm::vec2(static_cast<float>(cosine[i]), static_cast<float>(cosine[block + i]));
+  im.cosine_table = MakeBuffer(interleaved);
 
   // Overlap bins for the levels used, flattened for the shader.
   lighting::OverlapBinOptions bo;
@@ -870,6 +877,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       im.env_texel_prob.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
       mp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
     } else {
+      im.cosine_table.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
       sp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
     }
     glMemoryBarrier(GL_ALL_BARRIER_BITS);
