@@ -41,6 +41,10 @@ struct BenchRenderOptions {
   std::vector<int> cones = {1, 7, 19};
   std::vector<int> voxels = {64, 128, 256};
   std::vector<int> mc_samples = {4, 16, 64, 256};
+  std::vector<int> mc_voxels = {128};  // the Monte-Carlo rows' voxel resolutions
+  unsigned mc_seed = 1;
+  bool mc_exact = false;      // also Monte-Carlo rows with ray-traced visibility ("mc-exact")
+  std::string images_dir;     // non-empty: each scored row's car layer and shadow ratio as EXR there
   bool lobe_modes = true;     // also the four warp × cosine modes at the default configuration
   bool hd_row = true;         // a 1280×720 row (shade ms)
   bool ground_bounce = true;  // the media maps' lower half = Cycles' catcher seen from the car
@@ -52,7 +56,7 @@ struct BenchRenderOptions {
 constexpr int kDefaultLevels = 5, kDefaultCones = 7, kDefaultVoxels = 128;
 
 struct Row {
-  std::string reference, method, lobes;  // method: "sg" or "mc"; lobes: "iso-axis", "split-sg", ...
+  std::string reference, method, lobes;  // method: "sg", "mc" or "mc-exact"; lobes: "iso-axis", ...
   int width = 0, height = 0;
   int levels = 0, cones = 0, voxels = 0, samples = 0;
   double mean_rel = 0, rel_l1 = 0, bias = 0, ssim = 0, shadow_mae = -1;  // shadow_mae < 0: no shadow reference
@@ -252,7 +256,8 @@ std::string LobeName(const material::LobeOptions& l) {
 }
 
 Row RenderRow(const Reference& ref, const std::string& method, int levels, int cones, int voxels, int samples,
-              const material::LobeOptions& lobes, int width = 0, int height = 0) {
+              const material::LobeOptions& lobes, int width = 0, int height = 0, unsigned seed = 1,
+              const std::string& images_dir = "") {
   render::RenderOptions o;
   o.lighting_levels = levels;
   o.cone_rings = ConeRingsForCount(cones);
@@ -260,6 +265,8 @@ Row RenderRow(const Reference& ref, const std::string& method, int levels, int c
   o.materials = ref.materials;
   o.lobes = lobes;
   o.monte_carlo_samples = samples;
+  o.monte_carlo_seed = seed;
+  o.monte_carlo_exact_visibility = method == "mc-exact";
   lighting::LightingOptions lo;
   lo.transform.levels = levels;
   lighting::LightingBuilder builder(lo);
@@ -277,16 +284,27 @@ Row RenderRow(const Reference& ref, const std::string& method, int levels, int c
   Row row;
   row.reference = ref.name;
   row.method = method;
-  row.lobes = method == "mc" ? "exact" : LobeName(lobes);
+  row.lobes = method != "sg" ? "exact" : LobeName(lobes);
   row.width = camera.width;
   row.height = camera.height;
-  row.levels = method == "mc" ? 0 : levels;
-  row.cones = method == "mc" ? 0 : cones;
+  row.levels = method != "sg" ? 0 : levels;
+  row.cones = method != "sg" ? 0 : cones;
   row.voxels = voxels;
   row.samples = samples;
   row.shade_ms = r.ms.shade;
   row.total_ms = r.ms.total;
   if (scored) Score(ref, r, &row);
+  if (scored && !images_dir.empty()) {
+    // For looking at where a row's error lies: the car layer beside the reference's.
+    fs::create_directories(images_dir);
+    const std::string name =
+        ref.name + "_" + method +
+        (method == "sg" ? "_l" + std::to_string(levels) + "_c" + std::to_string(cones) + "_" + row.lobes
+                        : "_s" + std::to_string(samples)) +
+        "_v" + std::to_string(voxels) + ".exr";
+    image::SaveImage(fs::path(images_dir) / name, r.car);
+    image::SaveImage(fs::path(images_dir) / (name.substr(0, name.size() - 4) + "_shadow.exr"), r.shadow);
+  }
   return row;
 }
 
@@ -395,7 +413,7 @@ std::string Targets(const std::vector<Row>& rows) {
     for (const auto& r : rows) {
       if (r.reference != name) continue;
       if (IsDefault(r, lobes)) sg = &r;
-      if (r.method == "mc" && r.car_pixels > 0) mc.push_back(&r);
+      if (r.method == "mc" && r.voxels == kDefaultVoxels && r.car_pixels > 0) mc.push_back(&r);
     }
     if (!sg) continue;
     ++total;
@@ -444,7 +462,9 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
      << "window) of the luminance on car pixels, both scaled by Cycles' 99th percentile; `shadow`: mean "
      << "|ratio − ratio_ref| where Cycles' ratio < 0.95 off the car. `sg` rows: the triple-product renderer, "
      << "lobes `iso`/`split` (eq. 4.10's warp / the anisotropic split) × `axis`/`sg` (the cosine at the lobe "
-     << "axis / as an SG); `mc` rows: the Monte-Carlo shader on the same G-buffer and voxels. Times are one "
+     << "axis / as an SG); `mc` rows: the Monte-Carlo shader on the same G-buffer and voxels; `mc-exact` rows: "
+     << "the same with shadow rays against the triangles (the ground's lit fraction still from the voxels). Times are "
+        "one "
      << "render each, on the device named above.\n\n"
      << "| reference | method | lobes | levels | cones | voxels | samples | mean_rel | rel_l1 | bias | ssim | shadow | "
         "shade ms | total ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -515,10 +535,17 @@ int RunBenchRender(BenchRenderOptions o) {
   std::vector<Row> rows;
   BenchProgress progress("bench render", static_cast<long>(refs.size()) + (o.hd_row ? 1 : 0));
   for (const auto& ref : refs) {
-    for (const auto& c : configs) rows.push_back(RenderRow(ref, "sg", c[0], c[1], c[2], 0, modes[0]));
+    for (const auto& c : configs)
+      rows.push_back(RenderRow(ref, "sg", c[0], c[1], c[2], 0, modes[0], 0, 0, 1, o.images_dir));
     for (std::size_t m = 1; m < modes.size(); ++m)
-      rows.push_back(RenderRow(ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[m]));
-    for (int n : o.mc_samples) rows.push_back(RenderRow(ref, "mc", kDefaultLevels, 1, kDefaultVoxels, n, modes[0]));
+      rows.push_back(
+          RenderRow(ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[m], 0, 0, 1, o.images_dir));
+    for (const char* method : {"mc", "mc-exact"}) {
+      if (method == std::string("mc-exact") && !o.mc_exact) continue;
+      for (int v : o.mc_voxels)
+        for (int n : o.mc_samples)
+          rows.push_back(RenderRow(ref, method, kDefaultLevels, 1, v, n, modes[0], 0, 0, o.mc_seed, o.images_dir));
+    }
     progress.Step(ref.name);
   }
   if (o.hd_row) {
@@ -543,6 +570,13 @@ CommandFn AddBenchRender(CLI::App* sub) {
   sub->add_option("--cones", o->cones, "Cone counts to sweep (1, 7, 19, 37)")->delimiter(',');
   sub->add_option("--voxels", o->voxels, "Voxel resolutions to sweep")->delimiter(',');
   sub->add_option("--mc-samples", o->mc_samples, "Monte-Carlo samples per pixel, one row each")->delimiter(',');
+  sub->add_option("--mc-voxels", o->mc_voxels, "Voxel resolutions of the Monte-Carlo rows (one row each)")
+      ->delimiter(',');
+  sub->add_option("--mc-seed", o->mc_seed, "Seed of the Monte-Carlo rows");
+  sub->add_flag("--mc-exact", o->mc_exact,
+                "Also Monte-Carlo rows with shadow rays against the triangles (method mc-exact): what the voxels cost");
+  sub->add_option("--images", o->images_dir,
+                  "Also write each scored row's car layer and shadow ratio (linear EXR) here");
   sub->add_flag("!--no-lobe-modes", o->lobe_modes, "Skip the warp × cosine rows");
   sub->add_flag("!--no-hd", o->hd_row, "Skip the 1280x720 timing row");
   sub->add_flag("!--no-ground-bounce", o->ground_bounce,

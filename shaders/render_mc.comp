@@ -48,6 +48,11 @@ uniform float uGroundHalfSize;
 uniform int uGroundShadowsBounce;  // render_shade.comp's groundLit
 uniform float uGroundLitHalfAngle;
 
+uniform int uExactVisibility;  // RenderOptions::monte_carlo_exact_visibility
+uniform int uExactTriangles;   // 0: no geometry (everything visible)
+uniform float uExactRayOffset;
+uniform vec3 uGroundIrradiance;  // the ground's unshadowed irradiance (exact visibility only)
+
 uniform int uGroundPeakCount;
 uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
 uniform float uGroundPeakShare[8];
@@ -64,15 +69,65 @@ float groundLitFraction(vec3 q) {
   return lit + max(rest, 0.0) * traceCone(q, vec3(0, 1, 0), uGroundLitHalfAngle);
 }
 
+float groundLitExact(vec3 q);
+
 float groundLit(vec3 p, vec3 dir) {
   if (uGroundShadowsBounce == 0 || dir.y >= 0.0 || p.y <= 0.0) return 1.0;
   vec3 q = p - (p.y / dir.y) * dir;
   if (abs(q.x - uGroundCenter.x) > uGroundHalfSize || abs(q.z - uGroundCenter.y) > uGroundHalfSize) return 1.0;
-  return groundLitFraction(vec3(q.x, 0.0, q.z));
+  return uExactVisibility != 0 ? groundLitExact(vec3(q.x, 0.0, q.z)) : groundLitFraction(vec3(q.x, 0.0, q.z));
 }
 uniform int uSamples;
 uniform uint uSeed;
 uniform float uShadowRayHalfAngle;
+
+// RenderOptions::monte_carlo_exact_visibility: shadow rays against the triangles through a BVH
+// (visibility/triangle_bvh.h has the layout; its Occluded is this traversal on the CPU).
+layout(std430, binding = 11) readonly buffer BvhNodes { vec4 bvhNodes[]; };          // 2 per node
+layout(std430, binding = 12) readonly buffer BvhTriangles { vec4 bvhTriangles[]; };  // 3 per triangle
+
+bool rayOccluded(vec3 o, vec3 d) {
+  if (uExactTriangles <= 0) return false;
+  vec3 inv = 1.0 / d;
+  int stack[48];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    int node = stack[--top];
+    vec4 lo = bvhNodes[2 * node], hi = bvhNodes[2 * node + 1];
+    vec3 a = (lo.xyz - o) * inv, b = (hi.xyz - o) * inv;
+    vec3 tn = min(a, b), tf = max(a, b);
+    if (max(max(tn.x, tn.y), max(tn.z, 0.0)) > min(min(tf.x, tf.y), tf.z)) continue;
+    int first = floatBitsToInt(lo.w), count = floatBitsToInt(hi.w);
+    if (count == 0) {
+      stack[top++] = first;
+      stack[top++] = first + 1;
+      continue;
+    }
+    for (int t = first; t < first + count; ++t) {
+      vec3 v0 = bvhTriangles[3 * t].xyz, e1 = bvhTriangles[3 * t + 1].xyz - v0, e2 = bvhTriangles[3 * t + 2].xyz - v0;
+      vec3 p = cross(d, e2);
+      float det = dot(e1, p);
+      if (det == 0.0) continue;
+      float inv_det = 1.0 / det;
+      vec3 s = o - v0;
+      float u = dot(s, p) * inv_det;
+      if (u < 0.0 || u > 1.0) continue;
+      vec3 q = cross(s, e1);
+      float v = dot(d, q) * inv_det;
+      if (v < 0.0 || u + v > 1.0) continue;
+      if (dot(e2, q) * inv_det > 0.0) return true;
+    }
+  }
+  return false;
+}
+
+// The visibility of direction d from the surface point p (normal n; `origin` is p off the
+// surface for the voxel cones).
+float shadowRay(vec3 p, vec3 n, vec3 origin, vec3 d) {
+  if (uExactVisibility != 0) return rayOccluded(p + uExactRayOffset * n, d) ? 0.0 : 1.0;
+  return traceCone(origin, d, uShadowRayHalfAngle);
+}
 
 uint gRng;
 uint pcgHash(uint v) {
@@ -225,11 +280,33 @@ float ggxPdf(vec3 n, vec3 wo, vec3 wi, float alpha) {
 
 const float kEnvShare = 0.5;
 
+// The ground's lit fraction at q, E_shadowed / E, estimated by one sample of the same
+// strategies as the ground pixels below: unbiased, so the product with the car's own sample is.
+// Its random numbers come from a stream of their own, so the car's samples stay those of the
+// voxel shader with the same seed (paired comparisons).
+uint gGroundRng;
+float groundLitExact(vec3 q) {
+  const vec3 up = vec3(0, 1, 0);
+  uint car_rng = gRng;
+  gRng = gGroundRng;
+  vec3 wi = rand01() < kEnvShare ? sampleEnv() : sampleCosine(up);
+  gGroundRng = gRng;
+  gRng = car_rng;
+  float cos_i = wi.y;
+  if (cos_i <= 0.0) return 0.0;
+  float pdf = kEnvShare * envPdf(wi) + (1.0 - kEnvShare) * cos_i / kLobePi;
+  if (!(pdf > 0.0) || rayOccluded(q + uExactRayOffset * up, wi)) return 0.0;
+  vec3 value = envRadiance(wi) * (cos_i / pdf);
+  vec3 w = vec3(0.2126, 0.7152, 0.0722);
+  return dot(w, value) / max(dot(w, uGroundIrradiance), 1e-30);
+}
+
 void main() {
   ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
   if (pixel.x >= uSize.x || pixel.y >= uSize.y) return;
   uint index = uint(pixel.y * uSize.x + pixel.x);
   gRng = pcgHash(index ^ pcgHash(uSeed));
+  gGroundRng = pcgHash(gRng ^ 0x9e3779b9u);
   uvec4 count = uvec4(0);
   vec4 gp = imageLoad(uGPosition, pixel);
   vec4 car = vec4(0.0);
@@ -264,7 +341,7 @@ void main() {
       }
       vec3 value = f * envRadiance(wi) * (cos_i / pdf);
       if (value == vec3(0.0)) continue;
-      sum += value * (traceCone(origin, wi, uShadowRayHalfAngle) * groundLit(origin, wi));
+      sum += value * (shadowRay(p, n, origin, wi) * groundLit(origin, wi));
       count.y += 1u;
     }
     car = vec4(sum / float(max(uSamples, 1)), 1.0);
@@ -285,7 +362,7 @@ void main() {
         if (!(pdf > 0.0)) continue;
         vec3 value = envRadiance(wi) * (cos_i / pdf);
         unshadowed += value;
-        shaded += value * traceCone(p, wi, uShadowRayHalfAngle);
+        shaded += value * shadowRay(p, up, p, wi);
         count.y += 1u;
       }
       shadow.a = 1.0;

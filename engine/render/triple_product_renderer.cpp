@@ -19,6 +19,7 @@
 #include "engine/scene/gltf_scene.h"
 #include "engine/sphere/equirect.h"
 #include "engine/sphere/healpix.h"
+#include "engine/visibility/triangle_bvh.h"
 #include "engine/visibility/voxelizer_gpu.h"
 
 namespace odvr::render {
@@ -395,6 +396,9 @@ struct TripleProductRenderer::Impl {
   gl::Buffer env_row_cdf{gl::NoCreate}, env_col_cdf{gl::NoCreate}, env_texel_prob{gl::NoCreate};
   gl::Texture mc_environment{gl::NoCreate};
   gl::Program mc_program{gl::NoCreate};
+  // RenderOptions::monte_carlo_exact_visibility: the BVH's nodes and triangles.
+  gl::Buffer bvh_nodes{gl::NoCreate}, bvh_triangles{gl::NoCreate};
+  int bvh_triangle_count = 0;
 
   gl::Program gbuffer_program{gl::NoCreate}, shade_program{gl::NoCreate}, composite_program{gl::NoCreate};
   int fb_width = 0, fb_height = 0;
@@ -520,6 +524,12 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
     std::vector<glm::vec4> padded(im.triangles.size());
     for (std::size_t i = 0; i < padded.size(); ++i) padded[i] = glm::vec4(im.triangles[i], 1.f);
     im.triangle_buffer = MakeBuffer(padded);
+    if (options_.monte_carlo_samples > 0 && options_.monte_carlo_exact_visibility) {
+      const visibility::TriangleBvh bvh(im.triangles);
+      im.bvh_nodes = MakeBuffer(bvh.nodes());
+      im.bvh_triangles = MakeBuffer(bvh.triangles());
+      im.bvh_triangle_count = static_cast<int>(bvh.triangle_count());
+    }
   } else {
     im.spec = visibility::VoxelGridSpec::Covering(glm::dvec3(-1), glm::dvec3(1), options_.voxel_resolution);
   }
@@ -868,13 +878,41 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
           .Set("uGroundLitHalfAngle", static_cast<float>(kGroundLitHalfAngle))
           .Set("uSamples", options_.monte_carlo_samples)
           // A ray of a voxel's width: level 0 all along (cone_trace.glsl clamps the diameter).
-          .Set("uShadowRayHalfAngle", 1e-4f);
+          .Set("uShadowRayHalfAngle", 1e-4f)
+          .Set("uExactTriangles", geometry ? im.bvh_triangle_count : 0)
+          // Off the surface by a millimetre: the G-buffer's positions are interpolated in float.
+          .Set("uExactRayOffset", 1e-3f)
+          .Set("uExactVisibility", options_.monte_carlo_exact_visibility ? 1 : 0);
+      if (options_.monte_carlo_exact_visibility) {
+        // The ground's unshadowed irradiance from the map's upper half (world up), which the
+        // exact ground lit fraction divides by (render_mc.comp's groundLitExact).
+        const sphere::EquirectImage& env = im.environment;
+        const glm::dmat3 world_from_env = glm::transpose(im.lighting.env_from_world);
+        constexpr double kPi = 3.14159265358979323846;
+        glm::dvec3 e(0);
+        for (int y = 0; y < env.height; ++y) {
+          const double lat = 0.5 * kPi - kPi * (y + 0.5) / env.height;
+          const double d_omega = (2 * kPi / env.width) * (kPi / env.height) * std::cos(lat);
+          for (int x = 0; x < env.width; ++x) {
+            const double lon = kPi * (1 - 2 * (x + 0.5) / env.width);
+            const glm::dvec3 d = world_from_env * glm::dvec3(std::cos(lat) * std::cos(lon), std::sin(lat),
+                                                             -std::cos(lat) * std::sin(lon));
+            if (d.y <= 0) continue;
+            for (int c = 0; c < 3; ++c) e[c] += env.at(x, y)[c] * d.y * d_omega;
+          }
+        }
+        mp.Set("uGroundIrradiance", static_cast<float>(e.x), static_cast<float>(e.y), static_cast<float>(e.z));
+      }
       SetGroundPeakUniforms(mp, im.lighting, options_.peak_cones);
       SetConeTraceUniforms(mp, im.spec, geometry, options_.trace);
       im.mc_environment.BindUnit(1);
       im.env_row_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
       im.env_col_cdf.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
       im.env_texel_prob.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
+      if (im.bvh_triangle_count > 0) {
+        im.bvh_nodes.BindBase(GL_SHADER_STORAGE_BUFFER, 11);
+        im.bvh_triangles.BindBase(GL_SHADER_STORAGE_BUFFER, 12);
+      }
       mp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
     } else {
       im.cosine_table.BindBase(GL_SHADER_STORAGE_BUFFER, 8);

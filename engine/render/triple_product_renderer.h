@@ -122,6 +122,10 @@ struct RenderOptions {
   // shadow ray marched through the same voxel volume. The lighting model is then unused.
   int monte_carlo_samples = 0;
   unsigned monte_carlo_seed = 1;
+  // The Monte-Carlo baseline's shadow rays against the triangles themselves (a BVH,
+  // visibility/triangle_bvh.h) instead of through the voxels; the ground's lit fraction stays the
+  // voxel cones'. For attribution: the same estimator with both tells what the voxels cost.
+  bool monte_carlo_exact_visibility = false;
   void Check() const;  // throws odvr::Error naming the field
 };
 

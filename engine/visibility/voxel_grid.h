@@ -71,9 +71,13 @@ inline constexpr double kMaxConeHalfAngle = 1.3;  // ≈ 74.5°
 
 struct ConeTraceOptions {
   // The first sample is this many level-0 voxels from the origin: the origin's own surface
-  // marks its voxel and the conservative neighbour, and a cone starting inside them would
-  // see itself.
-  double start_offset_voxels = 2.0;
+  // marks its voxel and the conservative neighbour, and the trilinear filter spreads them by one
+  // more, so a cone starting inside that band sees itself — most of all a grazing one, which
+  // stays near its own surface for several voxels. Against the Cycles references
+  // (`odvr bench render`, 128³, docs/benchmarks/render_accuracy.md) every car and shadow error
+  // fell from 2 to 3 to 4 voxels, the SG renderer's and the Monte-Carlo shader's alike; the
+  // shadow errors did not rise, so the contact shadows it skips are not missed there.
+  double start_offset_voxels = 4.0;
   // The voxel of a sample's mip level as a fraction of the cone's diameter there (rounded to a
   // level); samples are one such voxel apart along the direction's dominant axis. At 0.5 the
   // trilinear footprint, a voxel around the sample, is about the cone's own.
@@ -81,12 +85,14 @@ struct ConeTraceOptions {
   // Transmittance of one voxel of opacity α is (1 − α)^κ. A fully opaque voxel stops the cone
   // whatever κ; κ < 1 lets a partly covered voxel block less than its coverage, because
   // successive samples along a cone see the same occluder (the bottom, side and top of a wall
-  // cover the same rays) while compositing treats them as independent. Chosen against
-  // ray-cast truth: with a wall's edge across the 7 cones of an SG lobe (cones_test) the lobe's
-  // visibility is within 0.07 of the truth at κ = 0.5, within 0.17 at κ = 1; one wide cone
-  // half over a wall (voxel_grid_test) reads 0.41–0.49 (origin moved by up to half a voxel)
-  // for a truth of 0.5, 0.21 at κ = 1.
-  double partial_opacity_exponent = 0.5;
+  // cover the same rays) while compositing treats them as independent, and because the
+  // conservative voxelization marks every voxel a surface touches, so partial coverage
+  // overstates the surface's. With a wall's edge across the 7 cones of an SG lobe (cones_test)
+  // the lobe's visibility is within 0.07 of the ray-cast truth at κ = 0.5, within 0.17 at κ = 1.
+  // Against the Cycles references (render_accuracy.md) κ = 0.3 beat 0.5 on every car but
+  // studio_glossy (unchanged) and halved sunset_diffuse's shadow error; 0.2 made the shadows worse
+  // again (studio's 0.076 → 0.093).
+  double partial_opacity_exponent = 0.3;
   // Tracing stops here (metres from the origin); 0 = where the ray leaves the grid.
   double max_distance = 0;
   // Accumulated occlusion at which the cone counts as blocked and tracing stops early.

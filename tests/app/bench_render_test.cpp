@@ -35,6 +35,9 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
     // MC: 0.4 at 200 ms, 0.1 at 800 ms; log-log interpolation puts 0.2 at 400 ms, 4× the SG time.
     tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t4\t0.4\t0.4\t0.9\t0.3\t0.1\t100\t1000\t200\t220\n";
     tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t16\t0.1\t0.1\t0.9\t0.6\t0.05\t100\t1000\t800\t820\n";
+    // Rows the speed target must not read: exact visibility (--mc-exact) and another resolution.
+    tsv << "car\tmc-exact\texact\t320\t180\t0\t0\t128\t16\t0.05\t0.05\t0.9\t0.7\t0.02\t100\t1000\t300\t320\n";
+    tsv << "car\tmc\texact\t320\t180\t0\t0\t256\t16\t0.08\t0.08\t0.9\t0.7\t0.04\t100\t1000\t900\t920\n";
     // A reference whose SG error meets the target and lies below every MC row: a lower bound.
     tsv << "paint\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.08\t0.08\t1.0\t0.9\t-1\t0\t900\t50\t60\n";
     tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t4\t0.5\t0.5\t1.0\t0.2\t-1\t0\t900\t100\t110\n";
@@ -44,7 +47,7 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
   }
   const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("8 rows"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("10 rows"), std::string::npos) << r.out;
   const std::string md = ReadText(d.dir / "render.md");
   EXPECT_NE(md.find("a test machine"), std::string::npos);
   EXPECT_NE(md.find("| car | 0.200 | no | 0.800 | 0.050 | 100.0 | 400 | 4.0× |"), std::string::npos) << md;

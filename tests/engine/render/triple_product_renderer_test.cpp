@@ -301,6 +301,61 @@ TEST_F(TripleProductRendererGL, MonteCarloShaderConvergesInAFurnace) {
   EXPECT_NEAR(sg_mean / mean, 1.0, 0.025);
 }
 
+// RenderOptions::monte_carlo_exact_visibility: the Monte-Carlo shader's shadow rays against the
+// triangles. Under a box floating 0.3 m up in a constant sky, the ground's shadow ratio is one
+// minus the box's bottom face's form factor (a point below a parallel rectangle, in closed form);
+// the exact rays must reach it within their noise, the voxel rays are printed beside for scale.
+TEST_F(TripleProductRendererGL, MonteCarloExactVisibilityMatchesTheFormFactorUnderABox) {
+  scene::GltfScene box;
+  box.materials = {Pbr("body", {0.4f, 0.4f, 0.45f}, 0.f, 0.6f)};
+  box.primitives.push_back(BoxPrimitive({-1.0f, 0.3f, -0.5f}, {1.0f, 1.2f, 0.5f}, 0));
+  odvr::testing::Finish(&box);
+  // Low, so that it sees the ground under the box.
+  const PinholeCamera cam = PinholeCamera::LookAt({0.3, 0.12, 2.5}, {0, 0.05, 0}, 30, kW, kH);
+  const sphere::EquirectImage map(64, 32, 1.f);
+  lighting::SgLighting light;
+  light.constant = glm::vec3(1.0f);
+  // A point under a corner of an a × b rectangle at height c, parallel to the ground.
+  const auto corner = [](double a, double b, double c) {
+    const double x = a / c, y = b / c, sx = std::sqrt(1 + x * x), sy = std::sqrt(1 + y * y);
+    return (x / sx * std::atan(y / sx) + y / sy * std::atan(x / sy)) / (2 * 3.14159265358979);
+  };
+  double error[2] = {0, 0};
+  int n = 0;
+  for (const bool exact : {true, false}) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.monte_carlo_samples = 64;
+    o.monte_carlo_exact_visibility = exact;
+    TripleProductRenderer r(box, glm::dmat4(1.0), o);
+    r.SetLighting(light);
+    r.SetEnvironment(map);
+    const RenderResult res = r.Render(cam);
+    ASSERT_TRUE(AllFinite(res.shadow));
+    double sum = 0, truth = 0;
+    n = 0;
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * kW + x;
+        if (res.ground_mask[i] < 0.5f || res.car_alpha[i] > 0.f) continue;
+        const glm::dvec3 d = cam.Ray(x + 0.5, y + 0.5);
+        const glm::dvec3 q = cam.position - (cam.position.y / d.y) * d;
+        // Well under the box (a few voxels from its edges, where the voxels' blur is not the point).
+        if (std::abs(q.x) > 0.8 || std::abs(q.z) > 0.35) continue;
+        const double f = corner(1 - q.x, 0.5 - q.z, 0.3) + corner(1 + q.x, 0.5 - q.z, 0.3) +
+                         corner(1 - q.x, 0.5 + q.z, 0.3) + corner(1 + q.x, 0.5 + q.z, 0.3);
+        sum += Luma(&res.shadow.rgb[3 * i]);
+        truth += 1 - f;
+        ++n;
+      }
+    ASSERT_GT(n, 30) << "too few ground pixels under the box";
+    error[exact ? 0 : 1] = (sum - truth) / n;
+    std::printf("ground under the box, %s visibility: mean ratio %.4f, form factor %.4f (%d px)\n",
+                exact ? "exact" : "voxel", sum / n, truth / n, n);
+  }
+  EXPECT_LT(std::abs(error[0]), 0.015);
+}
+
 TEST_F(TripleProductRendererGL, ShadowUnderTheCarAndNoneWithoutIt) {
   RenderOptions o;
   o.voxel_resolution = 64;

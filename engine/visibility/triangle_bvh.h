@@ -1,0 +1,40 @@
+#pragma once
+// Exact ray visibility against the scene's triangles: a bounding-volume hierarchy that the
+// Monte-Carlo baseline (render_mc.comp, RenderOptions::monte_carlo_exact_visibility) traverses
+// for its shadow rays instead of marching the voxel volume. Its only use is attribution: the same
+// estimator with exact and with voxel visibility tells how much of the error against Cycles the
+// voxels cost (docs/benchmarks/render_accuracy.md).
+//
+// Layout, shared with the shader: node i is two vec4s, (box min, a) and (box max, count) with a
+// and count stored as int bits (glm::intBitsToFloat). count > 0: a leaf holding triangles
+// [a, a + count) of triangles(); count = 0: an interior node whose children are a and a + 1.
+// triangles() holds three vec4 vertices (w = 1) per triangle, reordered so leaves are contiguous.
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+#include <span>
+#include <vector>
+
+namespace odvr::visibility {
+
+class TriangleBvh {
+ public:
+  // `vertices`: three per triangle (world space); a trailing partial triangle throws odvr::Error.
+  // Non-finite triangles are dropped.
+  explicit TriangleBvh(std::span<const glm::vec3> vertices);
+
+  // Whether the ray o + t d, t in (t_min, t_max), hits a triangle (either side). d need not be
+  // unit length; t is in its units.
+  bool Occluded(const glm::vec3& o, const glm::vec3& d, float t_min, float t_max) const;
+
+  const std::vector<glm::vec4>& nodes() const { return nodes_; }          // 2 per node
+  const std::vector<glm::vec4>& triangles() const { return triangles_; }  // 3 per triangle
+  std::size_t triangle_count() const { return triangles_.size() / 3; }
+
+  static constexpr int kLeafSize = 4;
+  static constexpr int kMaxDepth = 48;  // the shader's traversal stack holds this many
+
+ private:
+  std::vector<glm::vec4> nodes_, triangles_;
+};
+
+}  // namespace odvr::visibility

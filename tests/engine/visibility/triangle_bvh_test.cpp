@@ -1,0 +1,81 @@
+#include "engine/visibility/triangle_bvh.h"
+
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+#include <random>
+
+#include "engine/core/error.h"
+#include "tests/engine/visibility/test_meshes.h"
+
+namespace odvr::visibility {
+namespace {
+
+bool BruteForce(const std::vector<glm::vec3>& v, const glm::vec3& o, const glm::vec3& d, float t_min, float t_max) {
+  for (std::size_t i = 0; i < v.size(); i += 3) {
+    const TriangleBvh one(std::span<const glm::vec3>(v).subspan(i, 3));
+    if (one.Occluded(o, d, t_min, t_max)) return true;
+  }
+  return false;
+}
+
+TEST(TriangleBvh, AgreesWithEveryTriangleTestedAlone) {
+  // Spheres and boxes scattered so that rays pass between, graze and hit them.
+  std::vector<glm::vec3> mesh;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (int i = 0; i < 6; ++i) {
+    const glm::vec3 c(u(rng), u(rng), u(rng));
+    auto s = testing::SphereMesh(c, 0.15f + 0.1f * std::abs(u(rng)), 8, 12);
+    mesh.insert(mesh.end(), s.begin(), s.end());
+    auto b = testing::BoxMesh(c + glm::vec3(0.3f, 0, 0), c + glm::vec3(0.4f, 0.2f, 0.05f));
+    mesh.insert(mesh.end(), b.begin(), b.end());
+  }
+  const TriangleBvh bvh(mesh);
+  ASSERT_EQ(bvh.triangle_count(), mesh.size() / 3);
+  int hits = 0, misses = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const glm::vec3 o(1.5f * u(rng), 1.5f * u(rng), 1.5f * u(rng));
+    // Aimed near a random vertex: about as many hits as misses, many of them grazing.
+    const glm::vec3 target =
+        mesh[static_cast<std::size_t>(i * 7919) % mesh.size()] + 0.1f * glm::vec3(u(rng), u(rng), u(rng));
+    const glm::vec3 d = glm::normalize(target - o);
+    const float t_max = i % 2 ? 1e30f : 1.f + u(rng);
+    const bool expected = BruteForce(mesh, o, d, 0.f, t_max);
+    EXPECT_EQ(bvh.Occluded(o, d, 0.f, t_max), expected) << "ray " << i;
+    (expected ? hits : misses) += 1;
+  }
+  // Both outcomes are common, so the agreement says something.
+  EXPECT_GT(hits, 200);
+  EXPECT_GT(misses, 200);
+}
+
+TEST(TriangleBvh, RespectsTheRaysInterval) {
+  const auto quad = testing::QuadMesh(glm::vec3(0, 0, 1), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0), 1.f);
+  const TriangleBvh bvh(quad);
+  EXPECT_TRUE(bvh.Occluded(glm::vec3(0), glm::vec3(0, 0, 1), 0.f, 2.f));
+  EXPECT_FALSE(bvh.Occluded(glm::vec3(0), glm::vec3(0, 0, 1), 0.f, 0.9f));          // stops short
+  EXPECT_FALSE(bvh.Occluded(glm::vec3(0), glm::vec3(0, 0, 1), 1.1f, 2.f));          // starts past it
+  EXPECT_FALSE(bvh.Occluded(glm::vec3(0), glm::vec3(0, 0, -1), 0.f, 2.f));          // away from it
+  EXPECT_TRUE(bvh.Occluded(glm::vec3(0, 0, 2), glm::vec3(0, 0, -1), 0.f, 2.f));     // its back side
+  EXPECT_FALSE(bvh.Occluded(glm::vec3(0.6f, 0, 0), glm::vec3(0, 0, 1), 0.f, 2.f));  // beside it
+}
+
+TEST(TriangleBvh, EmptyAndBadInput) {
+  const TriangleBvh empty(std::vector<glm::vec3>{});
+  EXPECT_EQ(empty.triangle_count(), 0u);
+  EXPECT_FALSE(empty.Occluded(glm::vec3(0), glm::vec3(0, 0, 1), 0.f, 1e30f));
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const std::vector<glm::vec3> with_nan = {{0, 0, 1}, {1, 0, 1}, {0, nan, 1}};
+  EXPECT_EQ(TriangleBvh(with_nan).triangle_count(), 0u);
+  const std::vector<glm::vec3> partial = {{0, 0, 1}, {1, 0, 1}};
+  try {
+    TriangleBvh bad(partial);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("whole number of triangles"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace odvr::visibility
