@@ -5,7 +5,8 @@
 // hierarchy, and each gets its own visibility cone for a sharp shadow.
 //
 // HDR frames: pixels brighter than `threshold_factor` × the mean radiance are grouped into
-// connected components (OpenCV, 8-connected, joined across the ±180° seam and at each pole).
+// connected components (8-connected, joined across the ±180° seam and at each pole), looking
+// only into the `candidate_block`-sized blocks whose brightest pixel is over the threshold.
 // A component whose brightest pixel is under `min_contrast` × its surrounding level is a glow,
 // left to the hierarchy. The 10 is chosen, not derived: it sits in the gap measured over
 // ../shared/data/env (suns 128–3300×, dawn's glow 4.2×, which as peaks raised glossy200 6×).
@@ -36,6 +37,9 @@ struct PeakDetectorOptions {
   double elongation_for_split = 2.0;  // principal-axis ratio above which a component is split
   double ldr_clip_level = 0.98;       // linear value treated as clipped in an LDR frame
   double ldr_sun_to_sky_ratio = 4.0;
+  // Side of the blocks whose brightest pixel the first pass records; only blocks with a bright
+  // pixel are labelled. Any size gives the same components.
+  int candidate_block = 32;
   void Check() const;
 };
 
@@ -55,5 +59,14 @@ struct PeakDetection {
 };
 
 PeakDetection DetectPeaks(const sphere::EquirectImage& frame, const PeakDetectorOptions& options = {});
+// The same, taking the frame's storage for the residue (the caller's copy is spared: 6 MB at
+// 1024×512).
+PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptions& options = {});
+
+// The detector's connected components of bright pixels (HDR: luminance > threshold; LDR: every
+// channel >= threshold), each as ascending pixel indices row·width + col, found through the
+// candidate blocks as DetectPeaks finds them. For tests against a whole-frame labelling.
+std::vector<std::vector<int>> BrightComponents(const sphere::EquirectImage& frame, double threshold, bool ldr,
+                                               int candidate_block = PeakDetectorOptions{}.candidate_block);
 
 }  // namespace odvr::lighting
