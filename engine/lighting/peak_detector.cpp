@@ -269,6 +269,7 @@ PeakDetection Detect(sphere::EquirectImage frame, const PeakDetectorOptions& opt
   };
   std::vector<Candidate> candidates;
   std::vector<unsigned char> in(frame.pixel_count(), 0);  // the component's pixels, one at a time
+  std::vector<int> ring_pixels;
   for (auto& pixels : components) {
     if (pixels.empty()) continue;
     double area = 0;
@@ -286,13 +287,17 @@ PeakDetection Detect(sphere::EquirectImage frame, const PeakDetectorOptions& opt
           if (r2 < 0 || r2 >= h) continue;
           const int c2 = ((col + dc) % w + w) % w;
           const int q = r2 * w + c2;
-          if (in[static_cast<std::size_t>(q)] == 1) continue;
+          if (in[static_cast<std::size_t>(q)]) continue;
+          in[static_cast<std::size_t>(q)] = 2;  // count each ring pixel once
+          ring_pixels.push_back(q);
           const float* v = frame.at(c2, r2);
           ring += glm::dvec3(v[0], v[1], v[2]);
           ++ring_n;
         }
     }
     for (int p : pixels) in[static_cast<std::size_t>(p)] = 0;
+    for (int q : ring_pixels) in[static_cast<std::size_t>(q)] = 0;
+    ring_pixels.clear();
     Candidate c;
     c.background = ring_n ? glm::vec3(ring / double(ring_n)) : glm::vec3(0);
     std::vector<glm::dvec3> excess(pixels.size());
