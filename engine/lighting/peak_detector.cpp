@@ -130,7 +130,9 @@ std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, con
   const auto candidate = [&](int bx, int by) {
     const std::size_t i =
         static_cast<std::size_t>(by) * static_cast<std::size_t>(scan.blocks_wide) + static_cast<std::size_t>(bx);
-    return ldr ? scan.block_max[i] >= threshold : scan.block_max[i] > threshold;
+    // A luminance's weights sum to 1 only up to rounding: allow for a grey pixel's luminance
+    // rounding above its channels.
+    return ldr ? scan.block_max[i] >= threshold : scan.block_max[i] * (1 + 1e-9) > threshold;
   };
   const auto bright = [&](int p) { return IsBright(&frame.rgb[3 * static_cast<std::size_t>(p)], threshold, ldr); };
   const auto bright_in_row = [&](int row) {
