@@ -29,7 +29,9 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
   }
   r.resample_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   if (options_.detect_peaks) {
-    r.peak_detection = DetectPeaks(*source, options_.peaks);
+    // The resampled frame is ours: it becomes the residue without a copy.
+    r.peak_detection =
+        source == &small ? DetectPeaks(std::move(small), options_.peaks) : DetectPeaks(frame, options_.peaks);
     r.peaks_ms = r.peak_detection.ms;
     model =
         gpu ? gpu->Run(r.peak_detection.residue, &r.transform) : transform_.Run(r.peak_detection.residue, &r.transform);

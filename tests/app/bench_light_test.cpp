@@ -1,0 +1,54 @@
+// `odvr bench light --report-only` on rows written by hand: the sunny-map tables pick, per map, the
+// cheapest `sg+peaks` row that beats SH order 8 of the same width on all three convolved errors,
+// and say honestly whether it took less time.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "tests/app/run_odvr.h"
+
+namespace {
+
+using odvr::testing::ReadText;
+using odvr::testing::RunOdvr;
+using odvr::testing::ScratchDir;
+
+TEST(BenchLight, ReportPicksTheCheapestSgWithPeaksThatBeatsSh8OfTheSameWidth) {
+  ScratchDir scratch("bench_light");
+  {
+    std::ofstream tsv(scratch.dir / "lighting.tsv");
+    tsv << "# odvr bench light on a test\n"
+           "map\twidth\tmethod\tdevice\tparam\tcoefficients\tms\trel_l2\tdiffuse\tglossy20\tglossy200\n"
+           // sky: level 1 fails on diffuse; level 2 beats SH 8 at 1024 and is faster; 2048 slower.
+           "sky\t1024\tsh\tcpu\t8\t81\t3.0\t0.9\t0.010\t0.10\t0.80\n"
+           "sky\t1024\tsg+peaks\tcpu\t1\t14\t2.0\t0.5\t0.020\t0.05\t0.05\n"
+           "sky\t1024\tsg+peaks\tcpu\t2\t62\t2.5\t0.5\t0.005\t0.02\t0.03\n"
+           "sky\t1024\tsg+peaks\tcpu\t3\t254\t4.0\t0.5\t0.002\t0.01\t0.02\n"
+           "sky\t2048\tsh\tcpu\t8\t81\t5.0\t0.9\t0.010\t0.10\t0.80\n"
+           "sky\t2048\tsg+peaks\tcpu\t2\t62\t6.0\t0.5\t0.005\t0.02\t0.03\n"
+           // park: beats SH 8 only at 5 levels, slower than it. An SH 8 row of another width, far
+           // worse, must not be compared with.
+           "park\t1024\tsh\tcpu\t8\t81\t2.0\t0.9\t0.010\t0.10\t0.80\n"
+           "park\t512\tsh\tcpu\t8\t81\t0.5\t0.9\t0.900\t0.90\t0.90\n"
+           "park\t1024\tsg+peaks\tcpu\t4\t1024\t5.0\t0.5\t0.020\t0.01\t0.01\n"
+           "park\t1024\tsg+peaks\tcpu\t5\t4094\t9.0\t0.5\t0.005\t0.01\t0.01\n"
+           // dawn: never beats SH 8.
+           "dawn\t1024\tsh\tcpu\t8\t81\t2.0\t0.9\t0.001\t0.01\t0.10\n"
+           "dawn\t1024\tsg+peaks\tcpu\t5\t4090\t9.0\t0.5\t0.002\t0.005\t0.05\n";
+  }
+  const auto run = RunOdvr("bench light --report-only --out " + scratch.dir.string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string md = ReadText(scratch.dir / "lighting.md");
+  EXPECT_NE(md.find("| sky | 2 | 1024 | 0.0050 / 0.0100 | 0.0200 / 0.1000 | 0.0300 / 0.8000 | 2.50 / 3.00 | yes |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| park | 5 | 1024 | 0.0050 / 0.0100 | 0.0100 / 0.1000 | 0.0100 / 0.8000 | 9.00 / 2.00 | no |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| dawn | none beats SH 8 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("at less time than SH 8: 1 of 3 sunny maps."), std::string::npos) << md;
+}
+
+}  // namespace
