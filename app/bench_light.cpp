@@ -36,6 +36,8 @@ struct BenchLightOptions {
   std::vector<std::string> maps;
   std::vector<int> widths = {1024, 2048};
   int max_levels = 6;
+  int only_levels = 0;  // 0: every level count up to max_levels
+  bool skip_peaks = false;
   int repeats = 3;
   bool gpu = false;
   bool least_squares = true;
@@ -47,9 +49,11 @@ struct BenchLightOptions {
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
   int sweeps = lighting::ResidualTransformOptions{}.sweeps;
+  int fine_sweeps = lighting::ResidualTransformOptions{}.fine_sweeps;
   int base_width = lighting::ResidualTransformOptions{}.base_width;
   std::string normalization = "partition";
   double region_cutoff = lighting::ResidualTransformOptions{}.region_cutoff;
+  double broad_region_cutoff = lighting::ResidualTransformOptions{}.broad_region_cutoff;
   bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
 };
 
@@ -343,6 +347,7 @@ int RunBenchLight(BenchLightOptions o) {
     const lighting::LightingErrorEvaluator evaluator(native);
     if (o.least_squares)
       for (int levels = 1; levels <= std::min(o.max_levels, 5); ++levels) {
+        if (o.only_levels && levels != o.only_levels) continue;
         lighting::LeastSquaresReport ls;
         const auto model = lighting::LeastSquaresSgFit(native, levels, &ls);
         rows.push_back(
@@ -370,12 +375,15 @@ int RunBenchLight(BenchLightOptions o) {
         if (device == "gpu" && !o.gpu) continue;
         for (bool peaks : {false, true})
           for (int levels = 1; levels <= o.max_levels; ++levels) {
+            if ((o.only_levels && levels != o.only_levels) || (peaks && o.skip_peaks)) continue;
             lighting::LightingOptions lo;
             lo.transform.levels = levels;
             lo.transform.stop_threshold = 0;  // the bench measures each level count as asked
             lo.transform.sweeps = o.sweeps;
+            lo.transform.fine_sweeps = o.fine_sweeps;
             lo.transform.base_width = o.base_width;
             lo.transform.region_cutoff = o.region_cutoff;
+            lo.transform.broad_region_cutoff = o.broad_region_cutoff;
             lo.transform.exact_reconstruction = o.exact_reconstruction;
             lo.transform.normalization = o.normalization == "none"        ? lighting::Normalization::kNone
                                          : o.normalization == "local-sum" ? lighting::Normalization::kLocalSum
@@ -411,6 +419,10 @@ CommandFn AddBenchLight(CLI::App* sub) {
   sub->add_option("maps", o->maps, "Equirect maps (default: ../shared/data/env/*.exr)");
   sub->add_option("--widths", o->widths, "Frame widths to run the transform at")->delimiter(',');
   sub->add_option("--max-levels", o->max_levels, "Levels 0..N−1 at most")->check(CLI::Range(1, 6));
+  sub->add_option("--only-levels", o->only_levels,
+                  "Run only this level count (and its least-squares fit): a quick check of one configuration")
+      ->check(CLI::Range(1, 6));
+  sub->add_flag("--skip-peaks", o->skip_peaks, "Leave out the sg+peaks rows");
   sub->add_option("--repeats", o->repeats, "Timed runs per configuration (the median is kept)")
       ->check(CLI::Range(1, 100));
   sub->add_flag("--gpu", o->gpu, "Also time the GPU path (needs an OpenGL 4.5 context)");
@@ -418,8 +430,13 @@ CommandFn AddBenchLight(CLI::App* sub) {
   sub->add_option("--sh-width", o->sh_width, "Width of the grid SH projects the frame on (resampled, timed)")
       ->check(CLI::Range(16, 8192));
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
-  sub->add_option("--sweeps", o->sweeps, "Projection passes per level of the transform")->check(CLI::Range(1, 16));
-  sub->add_option("--region-cutoff", o->region_cutoff, "An SRBF's cap: where its Gaussian exceeds this")
+  sub->add_option("--sweeps", o->sweeps, "Projection passes per level of λ < 300 (levels 0-2)")
+      ->check(CLI::Range(1, 16));
+  sub->add_option("--fine-sweeps", o->fine_sweeps, "Projection passes per level of λ >= 300 (levels 3-5)")
+      ->check(CLI::Range(1, 16));
+  sub->add_option("--region-cutoff", o->region_cutoff, "An SRBF's cap: where its Gaussian exceeds this (levels 3-5)")
+      ->check(CLI::Range(1e-9, 0.4));
+  sub->add_option("--broad-region-cutoff", o->broad_region_cutoff, "The cap's cut-off of the levels 0-2")
       ->check(CLI::Range(1e-9, 0.4));
   sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
                 "Evaluate every coarser level on each level's grid (default), or magnify the coarser grid's "

@@ -23,6 +23,7 @@ struct LightOptions {
   int levels = 5;
   double threshold = 0.01;
   int sweeps = lighting::ResidualTransformOptions{}.sweeps;
+  int fine_sweeps = lighting::ResidualTransformOptions{}.fine_sweeps;
   int base_width = lighting::ResidualTransformOptions{}.base_width;
   bool no_peaks = false;
   bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
@@ -45,6 +46,7 @@ int RunLight(const LightOptions& o) {
   options.transform.levels = o.levels;
   options.transform.stop_threshold = o.threshold;
   options.transform.sweeps = o.sweeps;
+  options.transform.fine_sweeps = o.fine_sweeps;
   options.transform.base_width = o.base_width;
   options.transform.exact_reconstruction = o.exact_reconstruction;
   options.detect_peaks = !o.no_peaks;
@@ -124,7 +126,10 @@ CommandFn AddLight(CLI::App* sub) {
   sub->add_option("--levels", o->levels, "HEALPix levels to fit at most (1..6)")->check(CLI::Range(1, 6));
   sub->add_option("--threshold", o->threshold, "Stop when the mean |residue| falls below this × mean radiance")
       ->check(CLI::Range(0.0, 1.0));
-  sub->add_option("--sweeps", o->sweeps, "Projection passes per level (1: the seed's; 2: closer to least squares)")
+  sub->add_option("--sweeps", o->sweeps,
+                  "Projection passes per level of λ < 300, levels 0-2 (1: the seed's; more: closer to least squares)")
+      ->check(CLI::Range(1, 16));
+  sub->add_option("--fine-sweeps", o->fine_sweeps, "Projection passes per level of λ >= 300, levels 3-5")
       ->check(CLI::Range(1, 16));
   sub->add_option("--base-width", o->base_width, "Working-grid width of level 0, doubling per level")
       ->check(CLI::Range(8, 4096));

@@ -91,7 +91,10 @@ Convolutions LightingErrorEvaluator::ConvolveModel(const SgLighting& model, cons
     if (g.lambda < kDeltaLambda) {
       AddSgToImage(g, &grid, 1e-6);
     } else {
-      const double energy = Integral(Sg{g.axis, g.lambda, 1});
+      // A sharp lobe wholly above the horizon: ∫ (n·ω) G dω = (n·a) ∫ (a·ω) G dω, and the lobe's
+      // mean cosine about its axis is coth λ − 1/λ, not 1: taken as 1, each SG of level 3 was
+      // counted 0.27 % too bright, of the order of the diffuse errors compared (0.1–0.4 %).
+      const double energy = Integral(Sg{g.axis, g.lambda, 1}) * (1 / std::tanh(g.lambda) - 1 / g.lambda);
       for (std::size_t i = 0; i < dirs.size(); ++i)
         out.diffuse[i] += glm::dvec3(g.amplitude) * energy * std::max(0.0, glm::dot(dirs[i], g.axis));
     }

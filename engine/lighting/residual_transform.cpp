@@ -100,8 +100,23 @@ void ResidualTransformOptions::Check() const {
   if (!(stop_threshold >= 0)) throw Error("threshold", "must be >= 0");
   if (!(keep_threshold >= 0)) throw Error("keep threshold", "must be >= 0");
   if (sweeps < 1 || sweeps > 16) throw Error("sweeps", "must be 1..16");
+  if (fine_sweeps < 1 || fine_sweeps > 16) throw Error("fine sweeps", "must be 1..16");
   if (base_width < 8 || base_width > 4096) throw Error("base width", "must be 8..4096");
   if (!(region_cutoff > 0 && region_cutoff < 0.5)) throw Error("region cutoff", "must be in (0, 0.5)");
+  if (!(broad_region_cutoff > 0 && broad_region_cutoff < 0.5))
+    throw Error("broad region cutoff", "must be in (0, 0.5)");
+}
+
+namespace {
+constexpr int kBroadLevels = 3;  // levels 0–2: λ = 5.5, 22.6, 91.5 (level 3: 364.5)
+}  // namespace
+
+int SweepsOf(const ResidualTransformOptions& options, int level) {
+  return level < kBroadLevels ? options.sweeps : options.fine_sweeps;
+}
+
+double RegionCutoffOf(const ResidualTransformOptions& options, int level) {
+  return level < kBroadLevels ? options.broad_region_cutoff : options.region_cutoff;
 }
 
 std::size_t LevelTables::bytes() const {
@@ -276,7 +291,8 @@ const LevelTables& ResidualTransform::Tables(int level, int width, int height) {
   auto& slot = tables_[{level, width, height}];
   if (!slot) {
     const auto start = Clock::now();
-    slot = std::make_unique<LevelTables>(BuildLevelTables(level, width, height, options_.region_cutoff, pool_.get()));
+    slot = std::make_unique<LevelTables>(
+        BuildLevelTables(level, width, height, RegionCutoffOf(options_, level), pool_.get()));
     spdlog::debug("lighting: overlap lists of level {} on {}x{} built in {:.1f} ms ({:.1f} MiB)", level, width, height,
                   MsSince(start), slot->bytes() / 1048576.0);
   }
@@ -371,7 +387,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     Project(t, residue, options_.normalization, &mu, pool_.get());
     sphere::EquirectImage remaining = residue;
     Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
-    for (int sweep = 1; sweep < options_.sweeps; ++sweep) {
+    for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
       Project(t, remaining, options_.normalization, &delta, pool_.get());
       for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += delta[c];
       remaining = residue;

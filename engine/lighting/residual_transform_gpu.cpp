@@ -114,7 +114,7 @@ const ResidualTransformGpu::Tables& ResidualTransformGpu::TablesFor(int level, i
   auto& slot = tables_[{level, width, height}];
   if (slot && (slot->has_projection || !projection)) return *slot;
   const auto start = Clock::now();
-  const LevelTables t = BuildLevelTables(level, width, height, options_.region_cutoff, pool_.get());
+  const LevelTables t = BuildLevelTables(level, width, height, RegionCutoffOf(options_, level), pool_.get());
   auto g = std::make_unique<Tables>();
   g->srbfs = static_cast<int>(t.inv_weight_sum.size());
   g->lambda = t.lambda;
@@ -341,7 +341,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     const Tables& t = TablesFor(s, grid.width, grid.height, true);
     Project(t, residue_, mu_[mu], false);
     Reconstruct(&t, mu_[mu], residue_, remaining_, -1.f, grid, false, false);
-    for (int sweep = 1; sweep < options_.sweeps; ++sweep) {
+    for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
       Project(t, remaining_, mu_[mu], true);
       Reconstruct(&t, mu_[mu], residue_, remaining_, -1.f, grid, false, false);
     }

@@ -105,6 +105,7 @@ TEST_F(ResidualTransformGpuGL, AllLevelsAndOneSweepMatchCpu) {
   o.stop_threshold = 0;
   o.keep_threshold = 0;
   o.sweeps = 1;
+  o.fine_sweeps = 1;
   ResidualTransform cpu(o);
   TransformReport report;
   cpu.Run(SunnySky(256, 128), &report);

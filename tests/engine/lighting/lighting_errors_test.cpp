@@ -1,0 +1,57 @@
+#include "engine/lighting/lighting_errors.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+
+#include "engine/sphere/equirect.h"
+#include "engine/sphere/healpix.h"
+
+namespace odvr::lighting {
+namespace {
+
+// ∫ max(0, n·ω) G(ω) dω summed over a fine equirect grid (σ of level 3 is 3° = 34 pixels).
+double NumericalDiffuse(const glm::dvec3& n, const glm::dvec3& axis, double lambda) {
+  constexpr int kWidth = 4096, kHeight = 2048;
+  // Only the rows within 25° of the axis' latitude: beyond, G < 1e-12.
+  const double lat = std::asin(axis.y) * 180 / sphere::kPi;
+  const int row0 = std::max(0, static_cast<int>((90 - lat - 25) / 180 * kHeight));
+  const int row1 = std::min(kHeight, static_cast<int>((90 - lat + 25) / 180 * kHeight) + 1);
+  double sum = 0;
+  for (int row = row0; row < row1; ++row) {
+    const double da = sphere::EquirectPixelSolidAngle(row, kWidth, kHeight);
+    for (int col = 0; col < kWidth; ++col) {
+      const glm::dvec3 w = sphere::EquirectPixelDirection(col, row, kWidth, kHeight);
+      const double g = std::exp(lambda * (glm::dot(w, axis) - 1));
+      if (g < 1e-12) continue;
+      sum += std::max(0.0, glm::dot(n, w)) * g * da;
+    }
+  }
+  return sum;
+}
+
+TEST(LightingErrors, SharpLobesAreConvolvedWithTheCosineAtTheirMeanCosine) {
+  // A level-3 SG (λ = 364.5) counted as a point of its energy is 1/λ = 0.27 % too bright under
+  // the clamped cosine: as large as the diffuse errors the bench compares.
+  const auto& hp = sphere::Healpix(3);
+  SgLighting model;
+  model.levels.push_back({3, hp.Lambda(), {100}, {glm::vec3(1)}});
+  const glm::dvec3 axis = hp.centre(100);
+  // Directions 0°, 40° and 70° from the lobe's axis.
+  const glm::dvec3 side = glm::normalize(glm::cross(axis, glm::dvec3(0.3, 0.5, 0.8)));
+  std::vector<glm::dvec3> dirs;
+  for (double deg : {0.0, 40.0, 70.0}) {
+    const double a = deg * sphere::kPi / 180;
+    dirs.push_back(std::cos(a) * axis + std::sin(a) * side);
+  }
+  const Convolutions conv = LightingErrorEvaluator::ConvolveModel(model, dirs);
+  for (std::size_t i = 0; i < dirs.size(); ++i) {
+    const double expected = NumericalDiffuse(dirs[i], axis, hp.Lambda());
+    EXPECT_NEAR(conv.diffuse[i].x / expected, 1.0, 3e-4) << "direction " << i;
+  }
+}
+
+}  // namespace
+}  // namespace odvr::lighting
