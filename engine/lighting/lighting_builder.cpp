@@ -14,6 +14,17 @@ LightingBuilder::LightingBuilder(LightingOptions options) : options_(options), t
   if (options_.peak_grid_width < 64) throw Error("peak grid width", "must be at least 64");
 }
 
+int LightingBuilder::FusedFactor(int width, int height) const {
+  if (!options_.fuse_coarse_grid) return 1;
+  const int levels = options_.transform.levels;
+  const auto [cw, ch] = WorkingGrid(options_.transform, levels - 1, width, height);
+  if (cw >= width || width % cw || height % ch || width / cw != height / ch) return 1;
+  // Starting from the coarse grid must give every level the grid it gets from the frame.
+  for (int s = 0; s < levels; ++s)
+    if (WorkingGrid(options_.transform, s, cw, ch) != WorkingGrid(options_.transform, s, width, height)) return 1;
+  return width / cw;
+}
+
 SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingReport* report,
                                   ResidualTransformGpu* gpu) {
   const auto start = std::chrono::steady_clock::now();
@@ -29,14 +40,22 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
   }
   r.resample_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   if (options_.detect_peaks) {
-    // The resampled frame is ours: it becomes the residue without a copy.
-    r.peak_detection =
-        source == &small ? DetectPeaks(std::move(small), options_.peaks) : DetectPeaks(frame, options_.peaks);
+    // When the transform's finest grid divides the frame evenly, the detector box-averages the
+    // frame to it in its own pass (corrected where the peaks took light out): the transform
+    // starts there and derives the same grids, and the full-resolution residue is neither
+    // copied nor read again. Otherwise the resampled frame, ours, becomes the residue.
+    const int factor = FusedFactor(source->width, source->height);
+    if (factor > 1)
+      r.peak_detection = DetectPeaksToCoarseGrid(*source, factor, options_.peaks);
+    else
+      r.peak_detection =
+          source == &small ? DetectPeaks(std::move(small), options_.peaks) : DetectPeaks(frame, options_.peaks);
     r.peaks_ms = r.peak_detection.ms;
-    model =
-        gpu ? gpu->Run(r.peak_detection.residue, &r.transform) : transform_.Run(r.peak_detection.residue, &r.transform);
+    const sphere::EquirectImage& start_grid = factor > 1 ? r.peak_detection.coarse : r.peak_detection.residue;
+    model = gpu ? gpu->Run(start_grid, &r.transform) : transform_.Run(start_grid, &r.transform);
     for (const auto& p : r.peak_detection.peaks) model.peaks.insert(model.peaks.end(), p.sgs.begin(), p.sgs.end());
     r.peak_detection.residue = {};
+    r.peak_detection.coarse = {};
   } else {
     model = gpu ? gpu->Run(*source, &r.transform) : transform_.Run(*source, &r.transform);
   }
