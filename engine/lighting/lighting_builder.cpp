@@ -32,11 +32,19 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
   SgLighting model;
   sphere::EquirectImage small;
   const sphere::EquirectImage* source = &frame;
+  int grid_w = frame.width, grid_h = frame.height, frame_factor = 1;
   if (frame.width > options_.peak_grid_width) {
-    const int w = options_.peak_grid_width;
-    const int h = static_cast<int>(std::lround(static_cast<double>(frame.height) * w / frame.width));
-    small = sphere::ResampleArea(frame, w, h);
+    grid_w = options_.peak_grid_width;
+    grid_h = static_cast<int>(std::lround(static_cast<double>(frame.height) * grid_w / frame.width));
+    // An integer factor is where ResampleArea box-averages; the detector can do that in its pass.
+    if (frame.width % grid_w == 0 && frame.height % grid_h == 0 && frame.width / grid_w == frame.height / grid_h)
+      frame_factor = frame.width / grid_w;
+  }
+  const int factor = options_.detect_peaks ? FusedFactor(grid_w, grid_h) : 1;
+  if (frame.width > options_.peak_grid_width && (factor == 1 || frame_factor == 1)) {
+    small = sphere::ResampleArea(frame, grid_w, grid_h);
     source = &small;
+    frame_factor = 1;
   }
   r.resample_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   if (options_.detect_peaks) {
@@ -44,9 +52,9 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
     // frame to it in its own pass (corrected where the peaks took light out): the transform
     // starts there and derives the same grids, and the full-resolution residue is neither
     // copied nor read again. Otherwise the resampled frame, ours, becomes the residue.
-    const int factor = FusedFactor(source->width, source->height);
+    // A frame wider than the peak grid by an integer factor is box-averaged to it in the same pass.
     if (factor > 1)
-      r.peak_detection = DetectPeaksToCoarseGrid(*source, factor, options_.peaks);
+      r.peak_detection = DetectPeaksToCoarseGrid(*source, factor, options_.peaks, frame_factor, &peak_grid_);
     else
       r.peak_detection =
           source == &small ? DetectPeaks(std::move(small), options_.peaks) : DetectPeaks(frame, options_.peaks);

@@ -45,6 +45,7 @@ class LightingBuilder {
  private:
   LightingOptions options_;
   ResidualTransform transform_;
+  sphere::EquirectImage peak_grid_;  // the detector's grid of a wider frame, reused every frame
 };
 
 }  // namespace odvr::lighting

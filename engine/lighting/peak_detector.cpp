@@ -65,8 +65,12 @@ struct FrameScan {
 // With `coarse`, the same pass also sums each row into the frame box-averaged by `coarse_factor`
 // while the row is in cache, with DownsampleBox's own halves, so the result is that function's
 // bit for bit.
+//
+// With `source`, `frame` is written first, row by row, as `source` box-averaged by
+// `source_factor` (DownsampleBox's result bit for bit), each row scanned while in cache.
 FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da, int block, int coarse_factor = 1,
-               sphere::EquirectImage* coarse = nullptr) {
+               sphere::EquirectImage* coarse = nullptr, const sphere::EquirectImage* source = nullptr,
+               int source_factor = 1) {
   FrameScan s;
   std::vector<float> column;
   if (coarse) {
@@ -80,7 +84,16 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
   s.block_max.assign(static_cast<std::size_t>(s.blocks_wide) * static_cast<std::size_t>(s.blocks_high), 0.f);
   constexpr int kLanes = 12;  // four RGB pixels: lane j holds channel j % 3
   float lowest = 0, highest = 0;
+  std::vector<float> source_column;
+  if (source) source_column.resize(3 * static_cast<std::size_t>(source->width));
   for (int row = 0; row < h; ++row) {
+    if (source) {
+      std::fill(source_column.begin(), source_column.end(), 0.f);
+      for (int dy = 0; dy < source_factor; ++dy)
+        sphere::AddBoxRow(source->at(0, row * source_factor + dy), source->width, source_column.data());
+      // The frame is the caller's to fill: written here, read just below.
+      sphere::FoldBoxColumns(source_column.data(), source->width, source_factor, const_cast<float*>(frame.at(0, row)));
+    }
     double channel_sum[3] = {0, 0, 0};
     float* block_max = &s.block_max[static_cast<std::size_t>(row / block) * static_cast<std::size_t>(s.blocks_wide)];
     const float* p = frame.at(0, row);
@@ -207,8 +220,8 @@ std::vector<double> SolidAngles(int w, int h) {
 // `owned`: null, or the mutable image `input` refers to (sanitized in place, moved into the
 // residue). Without `keep_residue` the residue is left empty unless the frame is LDR.
 PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
-                     const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start,
-                     int coarse_factor);
+                     const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
+                     const sphere::EquirectImage* source = nullptr, int source_factor = 1);
 
 // The coarse cells holding a peak's pixels, recomputed from the frame with those pixels at
 // min(I, b) (what the residue holds there) in DownsampleBox's order: `taken` lists (pixel, its
@@ -269,26 +282,38 @@ PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptio
 }
 
 PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int coarse_factor,
-                                      const PeakDetectorOptions& options) {
+                                      const PeakDetectorOptions& options, int frame_factor,
+                                      sphere::EquirectImage* grid_storage) {
   const auto start = std::chrono::steady_clock::now();
-  if (coarse_factor < 2 || frame.width % coarse_factor || frame.height % coarse_factor)
-    throw Error("peak detection", "coarse factor " + std::to_string(coarse_factor) + " does not divide " +
+  if (frame_factor < 1 || frame.width % frame_factor || frame.height % frame_factor)
+    throw Error("peak detection", "frame factor " + std::to_string(frame_factor) + " does not divide " +
                                       std::to_string(frame.width) + "x" + std::to_string(frame.height));
-  return Detect(frame, nullptr, false, options, start, coarse_factor);
+  const int w = frame.width / frame_factor, h = frame.height / frame_factor;
+  if (coarse_factor < 2 || w % coarse_factor || h % coarse_factor)
+    throw Error("peak detection", "coarse factor " + std::to_string(coarse_factor) + " does not divide " +
+                                      std::to_string(w) + "x" + std::to_string(h));
+  if (frame_factor == 1) return Detect(frame, nullptr, false, options, start, coarse_factor);
+  sphere::EquirectImage local;
+  sphere::EquirectImage& grid = grid_storage ? *grid_storage : local;
+  // Filled by the scan. Kept by the caller across frames, its pages are not faulted in (and
+  // given back) for every frame: at 2048 wide that was a millisecond of the build.
+  if (grid.width != w || grid.height != h || grid.rgb.size() != 3 * static_cast<std::size_t>(w) * h)
+    grid = sphere::EquirectImage(w, h);
+  return Detect(grid, &grid, false, options, start, coarse_factor, &frame, frame_factor);
 }
 
 namespace {
 
 PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
-                     const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start,
-                     int coarse_factor) {
+                     const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
+                     const sphere::EquirectImage* source, int source_factor) {
   options.Check();
   PeakDetection out;
   const int w = input.width, h = input.height;
   if (w < 4 || h < 2) throw Error("peak detection", "frame too small");
   const std::vector<double> da = SolidAngles(w, h);
   sphere::EquirectImage* coarse = coarse_factor > 1 ? &out.coarse : nullptr;
-  FrameScan scan = Scan(input, da, options.candidate_block, coarse_factor, coarse);
+  FrameScan scan = Scan(input, da, options.candidate_block, coarse_factor, coarse, source, source_factor);
   // One NaN would make the mean radiance NaN and cost the frame its sun; an Inf would set the
   // threshold to Inf. Bad pixels are 0 here, as they are in the transform.
   sphere::EquirectImage copy;

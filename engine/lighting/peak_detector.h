@@ -72,9 +72,13 @@ PeakDetection DetectPeaks(const sphere::EquirectImage& frame, const PeakDetector
 PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptions& options = {});
 // The same peaks, with PeakDetection::coarse filled (`coarse_factor` ≥ 2 must divide the frame's
 // sides) instead of the residue (left empty, except for an LDR frame): the frame is read once
-// and never copied, unless it holds NaN/Inf/negative pixels.
+// and never copied, unless it holds NaN/Inf/negative pixels. With `frame_factor` > 1 the peaks
+// are found on the frame box-averaged by it (DownsampleBox bit for bit), made row by row in the
+// same pass, into `grid_storage` when given (scratch a caller keeps across frames), and
+// `coarse_factor` applies to that grid.
 PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int coarse_factor,
-                                      const PeakDetectorOptions& options = {});
+                                      const PeakDetectorOptions& options = {}, int frame_factor = 1,
+                                      sphere::EquirectImage* grid_storage = nullptr);
 
 // The detector's connected components of bright pixels (HDR: luminance > threshold; LDR: every
 // channel >= threshold), each as ascending pixel indices row·width + col, found through the

@@ -142,6 +142,23 @@ TEST(PeakDetector, CoarseGridIsTheResiduesBoxAverageBitForBit) {
       EXPECT_TRUE(plain.coarse.empty());
     }
   EXPECT_THROW(DetectPeaksToCoarseGrid(SkyMap(256, 128), 3), Error);
+  EXPECT_THROW(DetectPeaksToCoarseGrid(SkyMap(256, 128), 2, {}, 3), Error);
+}
+
+TEST(PeakDetector, FrameBoxAveragedInTheScanIsTheDetectorOnTheDownsampledFrame) {
+  sphere::EquirectImage img = SkyMap(512, 256);
+  AddDisc(&img, {0.5, 0.6, 0.3}, 0.02, 4000.f);
+  img.at(9, 200)[0] = -3.f;
+  const PeakDetection d = DetectPeaksToCoarseGrid(img, 4, {}, 2);
+  const PeakDetection plain = DetectPeaks(sphere::DownsampleBox(img, 2));
+  ASSERT_EQ(d.peaks.size(), 1u);
+  ASSERT_EQ(plain.peaks.size(), 1u);
+  EXPECT_EQ(d.peaks[0].energy, plain.peaks[0].energy);
+  EXPECT_EQ(d.peaks[0].sgs.front().amplitude, plain.peaks[0].sgs.front().amplitude);
+  EXPECT_EQ(d.threshold, plain.threshold);
+  const sphere::EquirectImage expected = sphere::DownsampleBox(plain.residue, 4);
+  ASSERT_EQ(d.coarse.rgb.size(), expected.rgb.size());
+  for (std::size_t i = 0; i < expected.rgb.size(); ++i) ASSERT_EQ(d.coarse.rgb[i], expected.rgb[i]) << i;
 }
 
 TEST(PeakDetector, SpotStraddlingTheSeamIsOnePeak) {
