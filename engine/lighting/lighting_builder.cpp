@@ -51,8 +51,8 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
     // When the transform's finest grid divides the frame evenly, the detector box-averages the
     // frame to it in its own pass (corrected where the peaks took light out): the transform
     // starts there and derives the same grids, and the full-resolution residue is neither
-    // copied nor read again. Otherwise the resampled frame, ours, becomes the residue.
-    // A frame wider than the peak grid by an integer factor is box-averaged to it in the same pass.
+    // copied nor read again (a frame wider than the peak grid by an integer factor is
+    // box-averaged to it in that pass too). Otherwise the resampled frame, ours, becomes the residue.
     if (factor > 1)
       r.peak_detection = DetectPeaksToCoarseGrid(*source, factor, options_.peaks, frame_factor, &peak_grid_);
     else
