@@ -51,4 +51,27 @@ TEST(BenchLight, ReportPicksTheCheapestSgWithPeaksThatBeatsSh8OfTheSameWidth) {
   EXPECT_NE(md.find("at less time than SH 8: 1 of 3 sunny maps."), std::string::npos) << md;
 }
 
+// The ratio to least squares takes the optimum fitted to the same enlarged frame the transform
+// got (a row of that width), not the one fitted to the sharper native map; an old TSV with only a
+// native row still gets a ratio from it.
+TEST(BenchLight, ReportComparesWithTheLeastSquaresFitOfTheSameWidth) {
+  ScratchDir scratch("bench_light_ls");
+  {
+    std::ofstream tsv(scratch.dir / "lighting.tsv");
+    tsv << "# odvr bench light on a test\n"
+           "map\twidth\tmethod\tdevice\tparam\tcoefficients\tms\trel_l2\tdiffuse\tglossy20\tglossy200\n"
+           "bridge\t2048\tleast-squares\tcpu\t5\t4093\t2400\t0.5\t0.002\t0.0020\t0.004\n"
+           "bridge\t512\tleast-squares\tcpu\t5\t4093\t2000\t0.5\t0.001\t0.0002\t0.003\n"
+           "bridge\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0030\t0.006\n"
+           "city\t512\tleast-squares\tcpu\t5\t4093\t1500\t0.5\t0.001\t0.0010\t0.002\n"
+           "city\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0010\t0.004\n";
+  }
+  const auto run = RunOdvr("bench light --report-only --out " + scratch.dir.string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string md = ReadText(scratch.dir / "lighting.md");
+  EXPECT_NE(md.find("| bridge | 0.50 | 1.50 | 1.50 | 80 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| city | 1.00 | 1.00 | 2.00 | 50 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("Maps with every ratio within 1.5: 1 of 2"), std::string::npos) << md;
+}
+
 }  // namespace
