@@ -19,6 +19,32 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
+// A NaN, Inf or negative value anywhere. Fixed-length lanes without an early exit, which GCC's
+// -O2 vectorizes: std::any_of's branch per value took 0.5 ms of a 1024-wide frame, as long as
+// the two coarse levels of the transform that read it.
+bool HasBadPixels(const std::vector<float>& values) {
+  constexpr int kLanes = 16;
+  float lowest[kLanes] = {}, probe[kLanes] = {};
+  const float* v = values.data();
+  const std::size_t n = values.size();
+  std::size_t i = 0;
+  for (; i + kLanes <= n; i += kLanes)
+    for (int j = 0; j < kLanes; ++j) {
+      lowest[j] = lowest[j] < v[i + j] ? lowest[j] : v[i + j];
+      probe[j] += v[i + j] * 0.f;  // NaN for a NaN or an Inf, and it stays NaN
+    }
+  bool bad = false;
+  for (; i < n; ++i) bad = bad || !(v[i] >= 0) || std::isinf(v[i]);
+  for (int j = 0; j < kLanes; ++j) bad = bad || !(lowest[j] >= 0) || probe[j] != 0.f;
+  return bad;
+}
+
+// Below this many overlap entries a pass runs on the calling thread: the coarse levels' grids
+// (64 wide) hold a few ten thousand, a few ten microseconds of work, and waking the pool's
+// threads for each of a level's passes cost more than that (2 levels at 1024 wide with peaks:
+// 0.30 -> ms in the transform, `odvr bench light`).
+constexpr long kSerialEntries = 1L << 16;
+
 // μ_c = Σ r G dA / Σ G dA over R(c), optionally divided by S̄_c; one SRBF per index.
 void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normalization normalization,
              std::vector<glm::vec3>* mu, ThreadPool* pool) {
@@ -48,30 +74,33 @@ void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normali
                         static_cast<float>(acc[2] * scale));
         }
       },
-      4);
+      t.srbf_begin.back() < kSerialEntries ? n : 4);
 }
 
 // out(p) = sign · Σ_c μ_c G_c(p) added to `out` (sign −1 subtracts: the residue update).
 void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float sign, sphere::EquirectImage* out,
                  ThreadPool* pool) {
   float* o = out->rgb.data();
-  pool->ParallelFor(static_cast<long>(out->pixel_count()), [&](long begin, long end) {
-    for (long p = begin; p < end; ++p) {
-      float acc[3] = {0, 0, 0};
-      for (int e = t.pixel_begin[static_cast<std::size_t>(p)]; e < t.pixel_begin[static_cast<std::size_t>(p) + 1];
-           ++e) {
-        const glm::vec3& m = mu[static_cast<std::size_t>(t.pixel_srbf[static_cast<std::size_t>(e)])];
-        const float g = t.pixel_g[static_cast<std::size_t>(e)];
-        acc[0] += m.x * g;
-        acc[1] += m.y * g;
-        acc[2] += m.z * g;
-      }
-      float* q = o + 3 * p;
-      q[0] += sign * acc[0];
-      q[1] += sign * acc[1];
-      q[2] += sign * acc[2];
-    }
-  });
+  pool->ParallelFor(
+      static_cast<long>(out->pixel_count()),
+      [&](long begin, long end) {
+        for (long p = begin; p < end; ++p) {
+          float acc[3] = {0, 0, 0};
+          for (int e = t.pixel_begin[static_cast<std::size_t>(p)]; e < t.pixel_begin[static_cast<std::size_t>(p) + 1];
+               ++e) {
+            const glm::vec3& m = mu[static_cast<std::size_t>(t.pixel_srbf[static_cast<std::size_t>(e)])];
+            const float g = t.pixel_g[static_cast<std::size_t>(e)];
+            acc[0] += m.x * g;
+            acc[1] += m.y * g;
+            acc[2] += m.z * g;
+          }
+          float* q = o + 3 * p;
+          q[0] += sign * acc[0];
+          q[1] += sign * acc[1];
+          q[2] += sign * acc[2];
+        }
+      },
+      t.pixel_begin.back() < kSerialEntries ? static_cast<long>(out->pixel_count()) : 64);
 }
 
 glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
@@ -311,8 +340,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
   {
     sphere::EquirectImage clean;
     const sphere::EquirectImage* source = &input;
-    const bool dirty =
-        std::any_of(input.rgb.begin(), input.rgb.end(), [](float v) { return !(v >= 0) || std::isinf(v); });
+    const bool dirty = HasBadPixels(input.rgb);
     if (dirty) {
       clean = input;
       const auto [bad, negative] = image::SanitizePixels(&clean);
@@ -352,10 +380,14 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
   int previous_level = -1;
   const float keep = static_cast<float>(options_.keep_threshold * report.mean_radiance);
 
+  // The residue a kept level left, on its grid: the next level's residue when it works on the
+  // same grid (levels 0 and 1 share a 64-wide one), which then need not be evaluated again.
+  sphere::EquirectImage carried;
   for (int s = 0; s < levels; ++s) {
     const auto level_start = Clock::now();
     const auto [w, h] = GridOf(s, input.width, input.height);
-    if (s > 0) {
+    const bool same_grid = options_.exact_reconstruction && s > 0 && carried.width == w && carried.height == h;
+    if (s > 0 && !same_grid) {
       // R_{<s} on this grid: every coarser level evaluated here (their overlap lists on this
       // grid are built once, like the level's own), or the coarser reconstruction magnified plus
       // the previous level evaluated here (see exact_reconstruction).
@@ -374,7 +406,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
       }
     }
     const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];
-    sphere::EquirectImage residue = Subtract(target, recon);
+    sphere::EquirectImage residue = same_grid ? std::move(carried) : Subtract(target, recon);
     const double before = MeanAbsRadiance(residue) / report.mean_radiance;
     const double rms_before = RmsRadiance(residue);
     if (before < options_.stop_threshold && s > 0) {
@@ -442,6 +474,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     if (options_.exact_reconstruction) all_mu.push_back(mu);
     previous_mu = std::move(mu);
     previous_level = s;
+    carried = std::move(remaining);
     lr.ms = MsSince(level_start);
     report.levels.push_back(lr);
     if (after < options_.stop_threshold) {

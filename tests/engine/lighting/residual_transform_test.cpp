@@ -184,6 +184,28 @@ TEST(ResidualTransform, NanInfAndNegativePixelsNeverReachTheModel) {
   for (float v : m.Reconstruct(64, 32).rgb) EXPECT_TRUE(std::isfinite(v));
 }
 
+// The scan for bad values works on 16 values at a time and then the rest: one bad value in any
+// lane, or among the last values of a frame whose size is no multiple of 16, is still found
+// and treated as 0 (the model equals that of the frame with a 0 there).
+TEST(ResidualTransform, OneBadValueAnywhereIsTreatedAsZero) {
+  const auto clean = SkyMap(130, 65);  // 3·130·65 = 25350 values: 6 past the last full 16
+  const std::size_t n = clean.rgb.size();
+  ResidualTransformOptions options;
+  options.levels = 2;
+  ResidualTransform t(options);
+  for (const std::size_t index : {std::size_t{0}, std::size_t{7}, std::size_t{16 * 800 + 13}, n - 6, n - 1})
+    for (const float bad : {std::nanf(""), INFINITY, -INFINITY, -1e6f}) {
+      auto dirty = clean;
+      dirty.rgb[index] = bad;
+      auto zeroed = clean;
+      zeroed.rgb[index] = 0.f;
+      const auto a = t.Run(dirty).ToSgs(), b = t.Run(zeroed).ToSgs();
+      ASSERT_EQ(a.size(), b.size()) << index << " " << bad;
+      for (std::size_t k = 0; k < a.size(); ++k)
+        ASSERT_EQ(a[k].amplitude, b[k].amplitude) << index << " " << bad << " sg " << k;
+    }
+}
+
 TEST(ResidualTransform, TinyAndNonEquirectInputsAreClearErrors) {
   ResidualTransform t;
   EXPECT_THROW(t.Run(sphere::EquirectImage(1, 1, 1.f)), Error);
