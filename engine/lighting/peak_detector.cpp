@@ -224,6 +224,38 @@ bool IsBright(const float* p, double threshold, bool ldr) {
 // sunny frame has a handful. Labelling the whole frame's mask (OpenCV, 8-connected), then
 // walking every label for the seam, the poles and the pixel lists, took about half of the
 // 8 ms a 1024×512 frame's detection took (perf on sky.exr enlarged as the bench does).
+// A zeroed byte per pixel, kept by each thread across frames (two fresh ones of 0.5 MB per
+// 1024-wide frame were faulted in and given back every frame). Whoever marks pixels clears
+// them again, also when it leaves by an exception; one PixelMarks at a time per thread.
+class PixelMarks {
+ public:
+  explicit PixelMarks(std::size_t n) : marks_(Storage()) {
+    if (marks_.size() < n) marks_.assign(n, 0);
+  }
+  ~PixelMarks() {
+    for (const int p : marked_) marks_[static_cast<std::size_t>(p)] = 0;
+  }
+  PixelMarks(const PixelMarks&) = delete;
+  PixelMarks& operator=(const PixelMarks&) = delete;
+  unsigned char operator[](int p) const { return marks_[static_cast<std::size_t>(p)]; }
+  void Set(int p, unsigned char v) {
+    if (!marks_[static_cast<std::size_t>(p)]) marked_.push_back(p);
+    marks_[static_cast<std::size_t>(p)] = v;
+  }
+  void Clear() {
+    for (const int p : marked_) marks_[static_cast<std::size_t>(p)] = 0;
+    marked_.clear();
+  }
+
+ private:
+  static std::vector<unsigned char>& Storage() {
+    thread_local std::vector<unsigned char> storage;
+    return storage;
+  }
+  std::vector<unsigned char>& marks_;
+  std::vector<int> marked_;
+};
+
 std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, const FrameScan& scan, double threshold,
                                          bool ldr) {
   const int w = frame.width, h = frame.height, block = scan.block;
@@ -244,11 +276,11 @@ std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, con
     return px;
   };
   const std::vector<int> top = bright_in_row(0), bottom = bright_in_row(h - 1);
-  std::vector<unsigned char> seen(frame.pixel_count(), 0);
+  PixelMarks seen(frame.pixel_count());
   std::vector<int> stack;
   const auto push = [&](int q) {
-    if (seen[static_cast<std::size_t>(q)] || !bright(q)) return;
-    seen[static_cast<std::size_t>(q)] = 1;
+    if (seen[q] || !bright(q)) return;
+    seen.Set(q, 1);
     stack.push_back(q);
   };
   std::vector<std::vector<int>> components;
@@ -258,8 +290,8 @@ std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, con
       for (int row = by * block; row < std::min(h, (by + 1) * block); ++row)
         for (int col = bx * block; col < std::min(w, (bx + 1) * block); ++col) {
           const int seed = row * w + col;
-          if (seen[static_cast<std::size_t>(seed)] || !bright(seed)) continue;
-          seen[static_cast<std::size_t>(seed)] = 1;
+          if (seen[seed] || !bright(seed)) continue;
+          seen.Set(seed, 1);
           std::vector<int> pixels;
           stack.assign(1, seed);
           while (!stack.empty()) {
@@ -437,15 +469,14 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
     glm::vec3 background;
   };
   std::vector<Candidate> candidates;
-  std::vector<unsigned char> in(frame.pixel_count(), 0);  // the component's pixels, one at a time
-  std::vector<int> ring_pixels;
+  PixelMarks in(frame.pixel_count());  // the component's pixels (1) and its ring (2), one component at a time
   for (auto& pixels : components) {
     if (pixels.empty()) continue;
     double area = 0;
     for (int p : pixels) area += da[static_cast<std::size_t>(p / w)];
     if (area > options.max_area_fraction * 4 * sphere::kPi) continue;  // a bright wall, not a light
     // The surrounding level: mean of the one-pixel ring around the component.
-    for (int p : pixels) in[static_cast<std::size_t>(p)] = 1;
+    for (int p : pixels) in.Set(p, 1);
     glm::dvec3 ring(0);
     int ring_n = 0;
     for (int p : pixels) {
@@ -456,17 +487,14 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
           if (r2 < 0 || r2 >= h) continue;
           const int c2 = ((col + dc) % w + w) % w;
           const int q = r2 * w + c2;
-          if (in[static_cast<std::size_t>(q)]) continue;
-          in[static_cast<std::size_t>(q)] = 2;  // count each ring pixel once
-          ring_pixels.push_back(q);
+          if (in[q]) continue;
+          in.Set(q, 2);  // count each ring pixel once
           const float* v = frame.at(c2, r2);
           ring += glm::dvec3(v[0], v[1], v[2]);
           ++ring_n;
         }
     }
-    for (int p : pixels) in[static_cast<std::size_t>(p)] = 0;
-    for (int q : ring_pixels) in[static_cast<std::size_t>(q)] = 0;
-    ring_pixels.clear();
+    in.Clear();
     Candidate c;
     c.background = ring_n ? glm::vec3(ring / double(ring_n)) : glm::vec3(0);
     std::vector<glm::dvec3> excess(pixels.size());
