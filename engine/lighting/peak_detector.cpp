@@ -127,44 +127,25 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
     for (int bx = 0; bx < s.blocks_wide; ++bx) {
       const int n = 3 * std::min(block, w - bx * block);
       V4 hi0{}, hi1{}, hi2{};
+      const auto take = [&](V4 a, V4 b, V4 c, V4& s0, V4& s1, V4& s2) {
+        s0 += a;
+        s1 += b;
+        s2 += c;
+        lo0 = lo0 < a ? lo0 : a;
+        lo1 = lo1 < b ? lo1 : b;
+        lo2 = lo2 < c ? lo2 : c;
+        hi0 = hi0 > a ? hi0 : a;
+        hi1 = hi1 > b ? hi1 : b;
+        hi2 = hi2 > c ? hi2 : c;
+      };
       int i = 0;
       // Eight pixels a step, the second four into their own sums: an add waits on the previous
       // one, a min or max hardly at all.
       for (; i + 2 * kLanes <= n; i += 2 * kLanes) {
-        const V4 a = Load4(p + i), b = Load4(p + i + 4), c = Load4(p + i + 8);
-        const V4 d = Load4(p + i + 12), e = Load4(p + i + 16), f = Load4(p + i + 20);
-        sum0 += a;
-        sum1 += b;
-        sum2 += c;
-        more0 += d;
-        more1 += e;
-        more2 += f;
-        lo0 = lo0 < a ? lo0 : a;
-        lo1 = lo1 < b ? lo1 : b;
-        lo2 = lo2 < c ? lo2 : c;
-        hi0 = hi0 > a ? hi0 : a;
-        hi1 = hi1 > b ? hi1 : b;
-        hi2 = hi2 > c ? hi2 : c;
-        lo0 = lo0 < d ? lo0 : d;
-        lo1 = lo1 < e ? lo1 : e;
-        lo2 = lo2 < f ? lo2 : f;
-        hi0 = hi0 > d ? hi0 : d;
-        hi1 = hi1 > e ? hi1 : e;
-        hi2 = hi2 > f ? hi2 : f;
+        take(Load4(p + i), Load4(p + i + 4), Load4(p + i + 8), sum0, sum1, sum2);
+        take(Load4(p + i + 12), Load4(p + i + 16), Load4(p + i + 20), more0, more1, more2);
       }
-      for (; i + kLanes <= n; i += kLanes) {
-        const V4 a = Load4(p + i), b = Load4(p + i + 4), c = Load4(p + i + 8);
-        sum0 += a;
-        sum1 += b;
-        sum2 += c;
-        lo0 = lo0 < a ? lo0 : a;
-        lo1 = lo1 < b ? lo1 : b;
-        lo2 = lo2 < c ? lo2 : c;
-        hi0 = hi0 > a ? hi0 : a;
-        hi1 = hi1 > b ? hi1 : b;
-        hi2 = hi2 > c ? hi2 : c;
-      }
-      if (i < n) {  // the block's last pixels, when the row's width is no multiple of 4
+      if (i < n) {  // the block's last pixels, when its width is no multiple of 8
         float sum[kLanes], lo[kLanes], hi[kLanes];
         Store12(sum, sum0, sum1, sum2);
         Store12(lo, lo0, lo1, lo2);
