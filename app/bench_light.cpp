@@ -267,8 +267,9 @@ void WriteReport(const std::vector<Row>& rows, const BenchLightOptions& o, const
      << "`sg+peaks` takes suns out as free-form SGs first; `least-squares` is the optimum on the same SG basis "
      << "(sparse Cholesky, every SRBF kept); `sh` is spherical harmonics of that order, projected from the same "
      << "frame area-resampled to " << o.sh_width << " wide (the resampling is in its time). Time is the median of "
-     << o.repeats << " runs on one frame (the transform's overlap lists are built once, before timing, as in "
-     << "playback).\n\n"
+     << o.repeats
+     << " runs on one frame, each a warm call as playback makes it every frame (one untimed call first builds "
+     << "the transform's overlap lists and the builder's scratch grid).\n\n"
      << "| width | method | device | levels/order | coefficients | ms | rel_l2 | diffuse | glossy20 | glossy200 |\n"
      << "|---|---|---|---|---|---|---|---|---|---|\n";
   const auto median = [](std::vector<double> v) {

@@ -14,6 +14,10 @@ struct LightingOptions {
   // Peaks are found on the frame area-resampled to at most this width (energy is preserved; a
   // 1024-wide pixel is 0.35°, below a sun disc's 0.5°), and the transform starts from there.
   int peak_grid_width = 1024;
+  // The detector box-averages the frame to the transform's finest working grid in its own pass
+  // (same result: tests/engine/lighting/lighting_builder_test.cpp); false: the transform
+  // resamples the residue itself, as before.
+  bool fuse_coarse_grid = true;
 };
 
 struct LightingReport {
@@ -34,10 +38,14 @@ class LightingBuilder {
                    ResidualTransformGpu* gpu = nullptr);
   ResidualTransform& transform() { return transform_; }
   const LightingOptions& options() const { return options_; }
+  // The box factor from a width×height frame to the transform's finest grid, when the detector
+  // can produce that grid (1: it cannot, the transform resamples).
+  int FusedFactor(int width, int height) const;
 
  private:
   LightingOptions options_;
   ResidualTransform transform_;
+  sphere::EquirectImage peak_grid_;  // the detector's grid of a wider frame, reused every frame
 };
 
 }  // namespace odvr::lighting

@@ -61,8 +61,22 @@ struct FrameScan {
 // RGB floats are taken four pixels (12 floats) at a time into per-lane sums, minima and maxima,
 // with no luminance and no division per pixel. Per pixel in double it took 1.5 ms of a
 // 1024×512 frame's 2 ms detection (perf, sky.exr enlarged as the bench does).
-FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da, int block) {
+//
+// With `coarse`, the same pass also sums each row into the frame box-averaged by `coarse_factor`
+// while the row is in cache, with DownsampleBox's own halves, so the result is that function's
+// bit for bit.
+//
+// With `source`, `frame` is written first, row by row, as `source` box-averaged by
+// `source_factor` (DownsampleBox's result bit for bit), each row scanned while in cache.
+FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da, int block, int coarse_factor = 1,
+               sphere::EquirectImage* coarse = nullptr, const sphere::EquirectImage* source = nullptr,
+               int source_factor = 1) {
   FrameScan s;
+  std::vector<float> column;
+  if (coarse) {
+    *coarse = sphere::EquirectImage(frame.width / coarse_factor, frame.height / coarse_factor);
+    column.assign(3 * static_cast<std::size_t>(frame.width), 0.f);
+  }
   const int w = frame.width, h = frame.height;
   s.block = block;
   s.blocks_wide = (w + block - 1) / block;
@@ -70,7 +84,16 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
   s.block_max.assign(static_cast<std::size_t>(s.blocks_wide) * static_cast<std::size_t>(s.blocks_high), 0.f);
   constexpr int kLanes = 12;  // four RGB pixels: lane j holds channel j % 3
   float lowest = 0, highest = 0;
+  std::vector<float> source_column;
+  if (source) source_column.resize(3 * static_cast<std::size_t>(source->width));
   for (int row = 0; row < h; ++row) {
+    if (source) {
+      std::fill(source_column.begin(), source_column.end(), 0.f);
+      for (int dy = 0; dy < source_factor; ++dy)
+        sphere::AddBoxRow(source->at(0, row * source_factor + dy), source->width, source_column.data());
+      // The frame is the caller's to fill: written here, read just below.
+      sphere::FoldBoxColumns(source_column.data(), source->width, source_factor, const_cast<float*>(frame.at(0, row)));
+    }
     double channel_sum[3] = {0, 0, 0};
     float* block_max = &s.block_max[static_cast<std::size_t>(row / block) * static_cast<std::size_t>(s.blocks_wide)];
     const float* p = frame.at(0, row);
@@ -104,6 +127,13 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
       highest = std::max(highest, m);
     }
     s.mean += Luminance(channel_sum) * da[static_cast<std::size_t>(row)];
+    if (coarse) {
+      sphere::AddBoxRow(frame.at(0, row), w, column.data());
+      if (row % coarse_factor == coarse_factor - 1) {
+        sphere::FoldBoxColumns(column.data(), w, coarse_factor, coarse->at(0, row / coarse_factor));
+        std::fill(column.begin(), column.end(), 0.f);
+      }
+    }
   }
   s.mean /= 4 * sphere::kPi;
   s.max_value = highest;
@@ -187,8 +217,40 @@ std::vector<double> SolidAngles(int w, int h) {
   return da;
 }
 
-PeakDetection Detect(sphere::EquirectImage frame, const PeakDetectorOptions& options,
-                     std::chrono::steady_clock::time_point start);
+// `owned`: null, or the mutable image `input` refers to (sanitized in place, moved into the
+// residue). Without `keep_residue` the residue is left empty unless the frame is LDR.
+PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
+                     const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
+                     const sphere::EquirectImage* source = nullptr, int source_factor = 1);
+
+// The coarse cells holding a peak's pixels, recomputed from the frame with those pixels at
+// min(I, b) (what the residue holds there) in DownsampleBox's order: `taken` lists (pixel, its
+// ring level). The rest of the coarse grid, summed in the scan, is the residue's already.
+void RefreshCoarse(const sphere::EquirectImage& frame, std::vector<std::pair<int, glm::vec3>> taken, int factor,
+                   sphere::EquirectImage* coarse) {
+  const int w = frame.width;
+  const auto cell_of = [&](int p) { return (p / w / factor) * coarse->width + (p % w) / factor; };
+  std::sort(taken.begin(), taken.end(),
+            [&](const auto& a, const auto& b) { return cell_of(a.first) < cell_of(b.first); });
+  std::vector<float> block(3 * static_cast<std::size_t>(factor) * static_cast<std::size_t>(factor));
+  std::vector<float> column(3 * static_cast<std::size_t>(factor));
+  for (std::size_t i = 0; i < taken.size();) {
+    const int cell = cell_of(taken[i].first);
+    const int cr = cell / coarse->width, cc = cell % coarse->width;
+    for (int dy = 0; dy < factor; ++dy)
+      std::copy_n(frame.at(cc * factor, cr * factor + dy), 3 * factor,
+                  &block[3 * static_cast<std::size_t>(dy * factor)]);
+    for (; i < taken.size() && cell_of(taken[i].first) == cell; ++i) {
+      const int p = taken[i].first;
+      float* v = &block[3 * static_cast<std::size_t>((p / w - cr * factor) * factor + (p % w - cc * factor))];
+      for (int k = 0; k < 3; ++k) v[k] = std::min(v[k], taken[i].second[k]);
+    }
+    std::fill(column.begin(), column.end(), 0.f);
+    for (int dy = 0; dy < factor; ++dy)
+      sphere::AddBoxRow(&block[3 * static_cast<std::size_t>(dy * factor)], factor, column.data());
+    sphere::FoldBoxColumns(column.data(), factor, factor, coarse->at(cc, cr));
+  }
+}
 
 }  // namespace
 
@@ -211,36 +273,70 @@ std::vector<std::vector<int>> BrightComponents(const sphere::EquirectImage& fram
 
 PeakDetection DetectPeaks(const sphere::EquirectImage& frame, const PeakDetectorOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  return Detect(frame, options, start);  // the copy becomes the residue
+  return Detect(frame, nullptr, true, options, start, 1);
 }
 
 PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  return Detect(std::move(frame), options, start);
+  return Detect(frame, &frame, true, options, start, 1);
+}
+
+PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int coarse_factor,
+                                      const PeakDetectorOptions& options, int frame_factor,
+                                      sphere::EquirectImage* grid_storage) {
+  const auto start = std::chrono::steady_clock::now();
+  if (frame_factor < 1 || frame.width % frame_factor || frame.height % frame_factor)
+    throw Error("peak detection", "frame factor " + std::to_string(frame_factor) + " does not divide " +
+                                      std::to_string(frame.width) + "x" + std::to_string(frame.height));
+  const int w = frame.width / frame_factor, h = frame.height / frame_factor;
+  if (coarse_factor < 2 || w % coarse_factor || h % coarse_factor)
+    throw Error("peak detection", "coarse factor " + std::to_string(coarse_factor) + " does not divide " +
+                                      std::to_string(w) + "x" + std::to_string(h));
+  if (frame_factor == 1) return Detect(frame, nullptr, false, options, start, coarse_factor);
+  sphere::EquirectImage local;
+  sphere::EquirectImage& grid = grid_storage ? *grid_storage : local;
+  // Filled by the scan. Kept by the caller across frames, its pages are not faulted in (and
+  // given back) for every frame: at 2048 wide that was a millisecond of the build.
+  if (grid.width != w || grid.height != h || grid.rgb.size() != 3 * static_cast<std::size_t>(w) * h)
+    grid = sphere::EquirectImage(w, h);
+  return Detect(grid, &grid, false, options, start, coarse_factor, &frame, frame_factor);
 }
 
 namespace {
 
-PeakDetection Detect(sphere::EquirectImage frame, const PeakDetectorOptions& options,
-                     std::chrono::steady_clock::time_point start) {
+PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
+                     const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
+                     const sphere::EquirectImage* source, int source_factor) {
   options.Check();
   PeakDetection out;
-  const int w = frame.width, h = frame.height;
+  const int w = input.width, h = input.height;
   if (w < 4 || h < 2) throw Error("peak detection", "frame too small");
   const std::vector<double> da = SolidAngles(w, h);
-  FrameScan scan = Scan(frame, da, options.candidate_block);
+  sphere::EquirectImage* coarse = coarse_factor > 1 ? &out.coarse : nullptr;
+  FrameScan scan = Scan(input, da, options.candidate_block, coarse_factor, coarse, source, source_factor);
   // One NaN would make the mean radiance NaN and cost the frame its sun; an Inf would set the
   // threshold to Inf. Bad pixels are 0 here, as they are in the transform.
+  sphere::EquirectImage copy;
   if (scan.dirty) {
-    const auto [bad, negative] = image::SanitizePixels(&frame);
+    if (!owned) {
+      copy = input;
+      owned = &copy;
+    }
+    const auto [bad, negative] = image::SanitizePixels(owned);
     spdlog::warn("peak detection input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
-    scan = Scan(frame, da, options.candidate_block);
+    scan = Scan(*owned, da, options.candidate_block, coarse_factor, coarse);
   }
+  const sphere::EquirectImage& frame = owned ? *owned : input;
+  // The residue, when one is kept: the caller's image moved, or a copy of the frame.
+  const auto take_residue = [&]() -> sphere::EquirectImage {
+    if (owned) return std::move(*owned);
+    return frame;
+  };
   const double mean = scan.mean;
   out.ldr = scan.max_value <= 1.0 + 1e-4;
   out.threshold = out.ldr ? options.ldr_clip_level : options.threshold_factor * mean;
   const auto finish = [&] {
-    out.residue = std::move(frame);
+    if (keep_residue) out.residue = take_residue();
     out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     return std::move(out);
   };
@@ -398,7 +494,14 @@ PeakDetection Detect(sphere::EquirectImage frame, const PeakDetectorOptions& opt
   if (static_cast<int>(candidates.size()) > options.max_peaks)
     candidates.resize(static_cast<std::size_t>(options.max_peaks));
 
-  out.residue = std::move(frame);
+  // An LDR sun's energy is judged against the residue, so it is kept then.
+  keep_residue = keep_residue || out.ldr;
+  std::vector<std::pair<int, glm::vec3>> taken;
+  if (coarse && !keep_residue)
+    for (const auto& c : candidates)
+      for (int p : c.pixels) taken.emplace_back(p, c.background);
+  if (!taken.empty()) RefreshCoarse(frame, std::move(taken), coarse_factor, coarse);
+  if (keep_residue) out.residue = take_residue();
 
   for (auto& c : candidates) {
     // The peak holds Σ max(I − b, 0) dA, so the residue keeps min(I, b) per channel: the two then
@@ -407,10 +510,16 @@ PeakDetection Detect(sphere::EquirectImage frame, const PeakDetectorOptions& opt
     // 17.8 while a luminance-thresholded component holds pixels far below it, which added 2 % of
     // the map's blue energy at the sun and made the diffuse error 5× that of no peaks.
     for (int p : c.pixels) {
+      if (!keep_residue) break;  // the coarse grid got the same above
       float* r = out.residue.at(p % w, p / w);
       r[0] = std::min(r[0], c.background.x);
       r[1] = std::min(r[1], c.background.y);
       r[2] = std::min(r[2], c.background.z);
+    }
+    if (coarse && keep_residue) {
+      std::vector<std::pair<int, glm::vec3>> pixels;
+      for (int p : c.pixels) pixels.emplace_back(p, c.background);
+      RefreshCoarse(out.residue, std::move(pixels), coarse_factor, coarse);
     }
     if (out.ldr) {
       // Clipped: scale the peak so its irradiance on a surface facing it is the prior ratio

@@ -59,12 +59,26 @@ struct PeakDetection {
   double threshold = 0;
   bool ldr = false;
   double ms = 0;
+  // From DetectPeaksToCoarseGrid only: the residue box-averaged, bit for bit
+  // sphere::DownsampleBox(residue, coarse_factor), summed in the detector's one pass over the
+  // frame and recomputed only in the cells the peaks changed, so the transform starts from its
+  // finest working grid without another pass over (or a copy of) the full-resolution residue.
+  sphere::EquirectImage coarse;
 };
 
 PeakDetection DetectPeaks(const sphere::EquirectImage& frame, const PeakDetectorOptions& options = {});
 // The same, taking the frame's storage for the residue (the caller's copy is spared: 6 MB at
 // 1024×512).
 PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptions& options = {});
+// The same peaks, with PeakDetection::coarse filled (`coarse_factor` ≥ 2 must divide the frame's
+// sides) instead of the residue (left empty, except for an LDR frame): the frame is read once
+// and never copied, unless it holds NaN/Inf/negative pixels. With `frame_factor` > 1 the peaks
+// are found on the frame box-averaged by it (DownsampleBox bit for bit), made row by row in the
+// same pass, into `grid_storage` when given (scratch a caller keeps across frames), and
+// `coarse_factor` applies to that grid.
+PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int coarse_factor,
+                                      const PeakDetectorOptions& options = {}, int frame_factor = 1,
+                                      sphere::EquirectImage* grid_storage = nullptr);
 
 // The detector's connected components of bright pixels (HDR: luminance > threshold; LDR: every
 // channel >= threshold), each as ascending pixel indices row·width + col, found through the

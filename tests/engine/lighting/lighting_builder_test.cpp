@@ -11,9 +11,12 @@
 #include <memory>
 #include <sstream>
 
+#include <algorithm>
+#include <cstdio>
 #include "engine/core/error.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_errors.h"
+#include "engine/sphere/resample.h"
 #include "tests/engine/lighting/lighting_test_maps.h"
 
 namespace odvr::lighting {
@@ -238,6 +241,46 @@ TEST(LightingBuilder, WideFileIsDownsampledWhileReadWithBoundedMemory) {
   // A frame too wide for the transform's grid goes through the builder at a bounded size.
   const SgLighting m = LightingBuilder().Build(img);
   ExpectFiniteModel(m);
+}
+
+TEST(LightingBuilder, FusedCoarseGridGivesTheSameModelAsResamplingTheResidue) {
+  // The detector's coarse grid is DownsampleBox of the residue bit for bit, and the transform
+  // derives the same grids from it, so the model must be the same to the last bit; a 1e-6
+  // relative tolerance only allows for a compiler contracting a sum differently in the two paths.
+  // At 2048 wide the detector also makes the 1024-wide grid in its pass.
+  for (int width : {1024, 2048}) {
+    SCOPED_TRACE(width);
+    sphere::EquirectImage img = SkyMap(width, width / 2);
+    AddDisc(&img, {0.5, 0.6, 0.3}, 0.01, 30000.f);
+    AddDisc(&img, {-0.4, 0.1, -0.8}, 0.015, 5000.f);
+    const auto near = [](float a, float b) { return std::abs(a - b) <= 1e-6f * std::max(1.f, std::abs(b)); };
+    for (int levels : {1, 2, 3, 4}) {
+      LightingOptions fused_options;
+      fused_options.transform.levels = levels;
+      fused_options.transform.stop_threshold = 0;
+      LightingOptions plain_options = fused_options;
+      plain_options.fuse_coarse_grid = false;
+      LightingBuilder fused(fused_options), plain(plain_options);
+      ASSERT_EQ(fused.FusedFactor(1024, 512), levels == 4 ? 4 : levels == 3 ? 8 : 16);
+      EXPECT_EQ(plain.FusedFactor(1024, 512), 1);
+      LightingReport fr, pr;
+      const SgLighting a = fused.Build(img, &fr), b = plain.Build(img, &pr);
+      ASSERT_EQ(fr.peak_detection.peaks.size(), 2u);
+      EXPECT_EQ(fr.transform.levels.size(), pr.transform.levels.size());
+      EXPECT_EQ(fr.transform.mean_radiance, pr.transform.mean_radiance);
+      for (int k = 0; k < 3; ++k) EXPECT_TRUE(near(a.constant[k], b.constant[k])) << levels;
+      ASSERT_EQ(a.levels.size(), b.levels.size()) << levels;
+      for (std::size_t l = 0; l < a.levels.size(); ++l) {
+        ASSERT_EQ(a.levels[l].indices, b.levels[l].indices) << levels;
+        for (std::size_t i = 0; i < a.levels[l].amplitudes.size(); ++i)
+          for (int k = 0; k < 3; ++k)
+            ASSERT_TRUE(near(a.levels[l].amplitudes[i][k], b.levels[l].amplitudes[i][k]))
+                << "levels " << levels << " level " << l << " srbf " << i;
+      }
+      ASSERT_EQ(a.peaks.size(), b.peaks.size());
+      for (std::size_t i = 0; i < a.peaks.size(); ++i) EXPECT_EQ(a.peaks[i].amplitude, b.peaks[i].amplitude);
+    }
+  }
 }
 
 }  // namespace

@@ -113,6 +113,54 @@ void ExpectOneRoundPeakAt(const glm::dvec3& centre, double radius_deg) {
   EXPECT_LT(MaxValue(d.residue), 1.01f * MaxValue(sky));
 }
 
+TEST(PeakDetector, CoarseGridIsTheResiduesBoxAverageBitForBit) {
+  // Two suns and a NaN (the detector sanitizes the frame and scans it again): the
+  // coarse grid summed in the scan and refreshed where the peaks took light out must be what
+  // DownsampleBox makes of the residue.
+  // An LDR frame's clipped suns take the path that keeps the residue.
+  for (const bool ldr : {false, true})
+    for (int factor : {2, 8, 16}) {
+      sphere::EquirectImage img = SkyMap(256, 128);
+      if (ldr)
+        for (float& v : img.rgb) v *= 0.7f;
+      AddDisc(&img, {0.5, 0.6, 0.3}, 0.02, ldr ? 1.f : 4000.f);
+      AddDisc(&img, {0, 0.2, -1}, 0.03, ldr ? 1.f : 900.f);
+      img.at(7, 90)[1] = std::nanf("");
+      const PeakDetection d = DetectPeaksToCoarseGrid(img, factor);
+      ASSERT_EQ(d.peaks.size(), 2u) << factor;
+      const PeakDetection plain = DetectPeaks(img);
+      EXPECT_EQ(d.residue.empty(), !ldr);
+      EXPECT_EQ(d.ldr, ldr);
+      const sphere::EquirectImage expected = sphere::DownsampleBox(plain.residue, factor);
+      ASSERT_EQ(d.coarse.width, expected.width);
+      ASSERT_EQ(d.coarse.height, expected.height);
+      for (std::size_t i = 0; i < expected.rgb.size(); ++i)
+        ASSERT_EQ(d.coarse.rgb[i], expected.rgb[i]) << "factor " << factor << ", value " << i;
+      // And the peaks are those of the detector without the coarse grid.
+      ASSERT_EQ(plain.peaks.size(), d.peaks.size());
+      for (std::size_t i = 0; i < plain.peaks.size(); ++i) EXPECT_EQ(plain.peaks[i].energy, d.peaks[i].energy);
+      EXPECT_TRUE(plain.coarse.empty());
+    }
+  EXPECT_THROW(DetectPeaksToCoarseGrid(SkyMap(256, 128), 3), Error);
+  EXPECT_THROW(DetectPeaksToCoarseGrid(SkyMap(256, 128), 2, {}, 3), Error);
+}
+
+TEST(PeakDetector, FrameBoxAveragedInTheScanIsTheDetectorOnTheDownsampledFrame) {
+  sphere::EquirectImage img = SkyMap(512, 256);
+  AddDisc(&img, {0.5, 0.6, 0.3}, 0.02, 4000.f);
+  img.at(9, 200)[0] = -3.f;
+  const PeakDetection d = DetectPeaksToCoarseGrid(img, 4, {}, 2);
+  const PeakDetection plain = DetectPeaks(sphere::DownsampleBox(img, 2));
+  ASSERT_EQ(d.peaks.size(), 1u);
+  ASSERT_EQ(plain.peaks.size(), 1u);
+  EXPECT_EQ(d.peaks[0].energy, plain.peaks[0].energy);
+  EXPECT_EQ(d.peaks[0].sgs.front().amplitude, plain.peaks[0].sgs.front().amplitude);
+  EXPECT_EQ(d.threshold, plain.threshold);
+  const sphere::EquirectImage expected = sphere::DownsampleBox(plain.residue, 4);
+  ASSERT_EQ(d.coarse.rgb.size(), expected.rgb.size());
+  for (std::size_t i = 0; i < expected.rgb.size(); ++i) ASSERT_EQ(d.coarse.rgb[i], expected.rgb[i]) << i;
+}
+
 TEST(PeakDetector, SpotStraddlingTheSeamIsOnePeak) {
   SCOPED_TRACE("seam");
   ExpectOneRoundPeakAt(Dir(180, 20), 3);

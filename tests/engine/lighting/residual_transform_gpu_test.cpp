@@ -12,6 +12,7 @@
 
 #include "engine/core/error.h"
 #include "engine/image/image_io.h"
+#include "engine/lighting/lighting_builder.h"
 #include "engine/lighting/residual_transform.h"
 #include "tests/engine/gl/gl_test_context.h"
 #include "tests/engine/lighting/lighting_test_maps.h"
@@ -96,6 +97,29 @@ TEST_F(ResidualTransformGpuGL, MagnifiedReconstructionMatchesCpu) {
   cpu.Run(SunnySky(256, 128), &report);
   ASSERT_EQ(report.levels.size(), 5u) << report.stop_reason;
   ExpectGpuMatchesCpu(SunnySky(256, 128), o);
+}
+
+TEST_F(ResidualTransformGpuGL, BuilderStartingFromTheDetectorsCoarseGridMatchesCpu) {
+  // LightingBuilder hands the transform the detector's coarse grid (the finest working grid)
+  // instead of the residue: the GPU path then resamples that grid onto itself, and must still
+  // be the CPU's, which starts from the residue when the fusion is off.
+  auto frame = SunnySky(1024, 512);
+  for (int levels : {2, 3}) {
+    SCOPED_TRACE(levels);
+    LightingOptions o;
+    o.transform.levels = levels;
+    o.transform.stop_threshold = 0;
+    LightingBuilder fused(o);
+    ASSERT_GT(fused.FusedFactor(frame.width, frame.height), 1);
+    o.fuse_coarse_grid = false;
+    LightingBuilder plain(o);
+    ResidualTransformGpu gpu(o.transform);
+    LightingReport cpu_report, gpu_report;
+    const SgLighting cpu_model = plain.Build(frame, &cpu_report);
+    const SgLighting gpu_model = fused.Build(frame, &gpu_report, &gpu);
+    ASSERT_EQ(gpu_report.peak_detection.peaks.size(), 1u);
+    ExpectSameTransform(cpu_model, cpu_report.transform, gpu_model, gpu_report.transform);
+  }
 }
 
 TEST_F(ResidualTransformGpuGL, AllLevelsAndOneSweepMatchCpu) {
