@@ -146,6 +146,7 @@ struct TermLobes {
   bool tail;            // GGX's tail SG (material::GgxSg), eq. 4.10's warp, after the others
   vec3 tail_axis;
   float tail_lambda, tail_amplitude;
+  float tail_share;     // material::GgxTailShare
 };
 const int kMPhong = 3;
 
@@ -192,6 +193,9 @@ void describeGgx(inout TermLobes t, vec3 f0, float alpha, vec3 n, vec3 wo) {
   if (!t.tail) return;
   t.tail_amplitude = e.w / kLobePi;
   warpToIncident(n, e.y, wo, t.tail_axis, t.tail_lambda);
+  float i0 = e.z * (e.x < 1e-6 ? 2.0 : (1.0 - exp(-2.0 * e.x)) / e.x);
+  float i1 = e.w * (e.y < 1e-6 ? 2.0 : (1.0 - exp(-2.0 * e.y)) / e.y);
+  t.tail_share = i1 / (i0 + i1);
   t.count += 1;
 }
 
@@ -256,6 +260,11 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
     }
   }
   return t;
+}
+
+// Lobe i's material::Lobe::tail_share: GGX's tail SG, after the peak's lobes, has its share of D.
+float termLobeTailShare(in TermLobes t, int i) {
+  return t.tail && i == (t.has_cosine ? 1 : 0) + 2 * t.half_count + 1 ? t.tail_share : 0.0;
 }
 
 // Lobe i of the term (material::Push): false when it is dropped (its axis below the horizon or

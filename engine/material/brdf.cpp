@@ -240,7 +240,10 @@ void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, const Shading
   if (fit.amplitude[1] <= 0) return;
   LobeOptions tail = o;
   tail.warp = WarpMode::kIsotropic;
+  const std::size_t first = out->size();
   PushWarped(Sg{f.n, fit.lambda[1], fit.amplitude[1]}, m_of, f, wo, tail, out);
+  const double share = GgxTailShare(fit);
+  for (std::size_t i = first; i < out->size(); ++i) (*out)[i].tail_share = share;
 }
 
 void LobesOf(const CookTorrance& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
@@ -339,6 +342,16 @@ GgxSgFit GgxSg(double alpha) {
     fit.amplitude[i] = c * weight[i] / (kPi * alpha * alpha);
   }
   return fit;
+}
+
+double GgxTailShare(const GgxSgFit& fit) {
+  if (!(fit.amplitude[1] > 0)) return 0.0;
+  double part[2];
+  for (int k = 0; k < 2; ++k) {
+    const double l = fit.lambda[k];
+    part[k] = fit.amplitude[k] * (l < 1e-6 ? 2.0 : -std::expm1(-2.0 * l) / l);
+  }
+  return part[1] / (part[0] + part[1]);
 }
 
 Sg WarpToIncident(const Sg& half_vector_lobe, const glm::dvec3& wo) {

@@ -165,6 +165,10 @@ struct Lobe {
   bool clamped_cosine = false;
   glm::dvec3 grazing{0};  // Burley's FL terms (MetallicRoughness), relative to weight
   glm::dvec3 view{0};
+  // GGX's tail SG (GgxSg): its share of D (GgxTailShare); 0 for every other lobe. A renderer
+  // lights a tail only with the lighting levels whose detail it shows at that share
+  // (lighting::OverlapBins::MaxLevel), the finer levels' energy moved onto the deepest of them.
+  double tail_share = 0;
 };
 
 enum class CosineTerm { kAtLobeAxis, kAsSg };
@@ -211,6 +215,9 @@ struct GgxSgFit {
   double amplitude[2];
 };
 GgxSgFit GgxSg(double alpha);
+// The wide SG's share of the fit's ∫D: μ₁ I(λ₁) / Σ μ_k I(λ_k), I(λ) = (1 − e^{−2λ})/λ; 0.45 for
+// α ≤ kGgxSgFadeBegin, 0 without a wide SG.
+double GgxTailShare(const GgxSgFit& fit);
 // Eq. 4.10: warps an SG in half-vector space to incident-direction space for the view wo.
 lighting::Sg WarpToIncident(const lighting::Sg& half_vector_lobe, const glm::dvec3& wo);
 // The clamped cosine around n as an SG.

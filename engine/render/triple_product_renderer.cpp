@@ -1,6 +1,7 @@
 #include "engine/render/triple_product_renderer.h"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -849,6 +850,14 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
         .Set("uGroundShadowsBounce", options_.ground && options_.ground_shadows_bounce ? 1 : 0)
         .Set("uGroundLitHalfAngle", static_cast<float>(kGroundLitHalfAngle));
+    {
+      std::array<float, 6> level_lambda;
+      level_lambda.fill(3e38f);  // beyond the levels used: never deep enough
+      for (int s = 0; s < options_.lighting_levels; ++s)
+        level_lambda[static_cast<std::size_t>(s)] = static_cast<float>(sphere::Healpix(s).Lambda());
+      glProgramUniform1fv(sp.id(), sp.Uniform("uLevelLambda"), 6, level_lambda.data());
+      sp.Set("uMinRetention", static_cast<float>(options_.overlap_min_retention));
+    }
     SetGroundPeakUniforms(sp, im.lighting, options_.peak_cones);
     SetConeTraceUniforms(sp, im.spec, geometry, options_.trace);
     if (geometry) glBindTextureUnit(0, im.voxelizer->texture().id());
