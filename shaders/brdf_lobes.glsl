@@ -20,17 +20,23 @@ const int kBrdfCookTorrance = 6;
 const int kBrdfMetallicRoughness = 7;
 
 
-// λ·α² of the SG fit of a GGX/Beckmann NDF (material::NdfSgLambda), tabulated on α ∈ [kMinAlpha, 1]
-// by the renderer: smooth (→ 2 − α² as α → 0), so linear interpolation is ample.
-layout(std430, binding = 7) readonly buffer NdfTable { float ndfLambdaAlpha2[]; };
+// Per α ∈ [kMinAlpha, 1] (uniform nodes, filled by the renderer) two vec4: x of the first is λ·α²
+// of the one-SG fit of a GGX/Beckmann NDF (material::NdfSgLambda); the second GGX's two SGs
+// (material::GgxSg): λ_0 α², λ_1 α², μ_0 π α², μ_1 π α². Smooth in α (λα² → 2 − α² as α → 0),
+// so linear interpolation is ample.
+layout(std430, binding = 7) readonly buffer NdfTable { vec4 ndfTable[]; };
+
+vec4 ndfTableAt(float alpha, int column) {
+  alpha = clamp(alpha, kMinAlpha, 1.0);
+  int n = ndfTable.length() / 2;
+  float x = (alpha - kMinAlpha) / (1.0 - kMinAlpha) * float(n - 1);
+  int i = min(int(x), n - 2);
+  return mix(ndfTable[2 * i + column], ndfTable[2 * i + 2 + column], x - float(i));
+}
 
 float ndfSgLambda(float alpha) {
   alpha = clamp(alpha, kMinAlpha, 1.0);
-  int n = ndfLambdaAlpha2.length();
-  float x = (alpha - kMinAlpha) / (1.0 - kMinAlpha) * float(n - 1);
-  int i = min(int(x), n - 2);
-  float v = mix(ndfLambdaAlpha2[i], ndfLambdaAlpha2[i + 1], x - float(i));
-  return max(v, 0.0) / (alpha * alpha);
+  return max(ndfTableAt(alpha, 0).x, 0.0) / (alpha * alpha);
 }
 
 vec3 reflectAbout(vec3 w, vec3 about) { return 2.0 * dot(w, about) * about - w; }
@@ -137,6 +143,10 @@ struct TermLobes {
   vec3 across;
   float split_lambda, s_conv, delta, scale;
   int half_count;
+  bool tail;            // GGX's tail SG (material::GgxSg), eq. 4.10's warp, after the others
+  vec3 tail_axis;
+  float tail_lambda, tail_amplitude;
+  float tail_share;     // material::GgxTailShare
 };
 const int kMPhong = 3;
 
@@ -175,6 +185,20 @@ void describeWarped(inout TermLobes t, float lambda_h, float amplitude, int kind
   t.count += 2 * t.half_count + 1;
 }
 
+// GGX (material::PushCookTorrance): the peak SG warped as uWarpSplit says, the tail by eq. 4.10.
+void describeGgx(inout TermLobes t, vec3 f0, float alpha, vec3 n, vec3 wo) {
+  vec4 e = max(ndfTableAt(alpha, 1), vec4(0.0)) / (alpha * alpha);
+  describeWarped(t, e.x, e.z / kLobePi, kMCookTorrance, f0, alpha, true, n, wo);
+  t.tail = e.w > 0.0;
+  if (!t.tail) return;
+  t.tail_amplitude = e.w / kLobePi;
+  warpToIncident(n, e.y, wo, t.tail_axis, t.tail_lambda);
+  float i0 = e.z * (e.x < 1e-6 ? 2.0 : (1.0 - exp(-2.0 * e.x)) / e.x);
+  float i1 = e.w * (e.y < 1e-6 ? 2.0 : (1.0 - exp(-2.0 * e.y)) / e.y);
+  t.tail_share = i1 / (i0 + i1);
+  t.count += 1;
+}
+
 TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metallic, float roughness, vec3 n, vec3 wo) {
   TermLobes t;
   t.count = 0;
@@ -182,6 +206,7 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
   t.cosine_linear = vec3(0.0);
   t.cosine_grazing = vec3(0.0);
   t.kind = -1;
+  t.tail = false;
   if (type == kBrdfGltf || type == kBrdfMetallicRoughness) {
     if (type == kBrdfMetallicRoughness) {
       base = color.rgb;
@@ -206,7 +231,7 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
                        a0;
     t.count = 1;
     float alpha = clamp(r * r, kMinAlpha, 1.0);
-    describeWarped(t, ndfSgLambda(alpha), 1.0 / (kLobePi * alpha * alpha), kMCookTorrance, f0, alpha, true, n, wo);
+    describeGgx(t, f0, alpha, n, wo);
   } else if (type == kBrdfLambertian) {
     t.has_cosine = true;
     t.cosine_weight = color.rgb / kLobePi;
@@ -227,10 +252,19 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
     describeWarped(t, 2.0 / (a * a), 1.0, kMWard, color.rgb, a, true, n, wo);
   } else if (type == kBrdfCookTorrance) {
     float alpha = clamp(params.x, kMinAlpha, 1.0);
-    describeWarped(t, ndfSgLambda(alpha), 1.0 / (kLobePi * alpha * alpha), kMCookTorrance, color.rgb, alpha,
-                   params.y < 0.5, n, wo);
+    if (params.y < 0.5) {
+      describeGgx(t, color.rgb, alpha, n, wo);
+    } else {
+      describeWarped(t, ndfSgLambda(alpha), 1.0 / (kLobePi * alpha * alpha), kMCookTorrance, color.rgb, alpha, false,
+                     n, wo);
+    }
   }
   return t;
+}
+
+// Lobe i's material::Lobe::tail_share: GGX's tail SG, after the peak's lobes, has its share of D.
+float termLobeTailShare(in TermLobes t, int i) {
+  return t.tail && i == (t.has_cosine ? 1 : 0) + 2 * t.half_count + 1 ? t.tail_share : 0.0;
 }
 
 // Lobe i of the term (material::Push): false when it is dropped (its axis below the horizon or
@@ -250,7 +284,12 @@ bool termLobe(in TermLobes t, int i, vec3 n, vec3 wo, out vec3 axis, out float l
   }
   float amplitude = t.amplitude;
   vec3 m;
-  if (t.kind == kMPhong) {
+  if (t.tail && i == 2 * t.half_count + 1) {
+    axis = t.tail_axis;
+    lambda = t.tail_lambda;
+    amplitude = t.tail_amplitude;
+    m = mAt(t.kind, t.color, t.alpha, t.ggx, n, wo, axis);
+  } else if (t.kind == kMPhong) {
     axis = t.axis;
     lambda = t.lambda;
     m = t.color;

@@ -47,6 +47,8 @@ uniform vec3 uConstant;
 uniform int uPeakCount;
 uniform int uPeakCones;  // 1: each peak its own cone; 0: peaks shadowed by the lobes' cones
 uniform int uBinLevelCount;
+uniform float uLevelLambda[6];  // sphere::Healpix(s).Lambda() of the levels used, 3e38 beyond
+uniform float uMinRetention;    // RenderOptions::overlap_min_retention
 uniform float uSingleConeMaxHalfAngle;
 uniform float uConeCoverage;
 uniform float uMaxConeHalfAngle;
@@ -289,6 +291,10 @@ float clampedCosineLobeIntegral(vec3 axis, float lambda, SgProduct p) {
          sgIntegral(lambda);
 }
 
+// ≥ 0: the visible share of the whole lobe, used for every lighting SG (a GGX tail, see
+// emitLobe); < 0: each SG's own.
+float gLobeShare;
+
 // One lighting SG's contribution to a lobe: unshadowed ∫ G_lobe G_light (unit amplitudes) times
 // the visible share.
 void addLight(vec3 lobe_axis, float lobe_lambda, vec3 axis, float lambda, vec3 amplitude, in ConeSet set,
@@ -297,7 +303,9 @@ void addLight(vec3 lobe_axis, float lobe_lambda, vec3 axis, float lambda, vec3 a
   float full = gCosine ? clampedCosineLobeIntegral(axis, lambda, prod)
                        : kTwoPi * exp(prod.log_amplitude) * sgShape(prod.lambda) * linearFactor(prod);
   float share = 1.0;
-  if (!set.all_visible) {
+  if (!set.all_visible && gLobeShare >= 0.0) {
+    share = gLobeShare;
+  } else if (!set.all_visible) {
     share = visibleShare(prod, set);
     count.z += uint(set.count);
   }
@@ -306,14 +314,26 @@ void addLight(vec3 lobe_axis, float lobe_lambda, vec3 axis, float lambda, vec3 a
   count.w += 1u;
 }
 
+// lighting::OverlapBins::MaxLevel(λ, share).
+int maxLevelFor(float lambda, float share) {
+  int depth = 0;
+  for (int s = 1; s < 6; ++s)
+    if (share * lambda >= uMinRetention * (uLevelLambda[s] + lambda)) depth = s;
+  return depth;
+}
+
 // Σ over the lobe's lighting SGs: the constant, the overlapping SRBFs, and the peaks when they
-// have no cone of their own.
-void shadeLobe(vec3 lobe_axis, float lobe_lambda, in ConeSet set, inout vec3 shaded, inout vec3 unshadowed,
-               inout uvec4 count) {
+// have no cone of their own. A GGX tail (tail_share > 0, material::Lobe::tail_share) stops at
+// the deepest level it needs (the lists are sorted by global index, so by level).
+void shadeLobe(vec3 lobe_axis, float lobe_lambda, float tail_share, in ConeSet set, inout vec3 shaded,
+               inout vec3 unshadowed, inout uvec4 count) {
   if (uConstant != vec3(0.0))
     addLight(lobe_axis, lobe_lambda, vec3(0, 1, 0), 0.0, uConstant, set, shaded, unshadowed, count);
+  // lighting::GlobalSrbfIndex(d + 1, 0): the first SRBF below the tail's deepest level d.
+  int end = tail_share > 0.0 ? 4 * ((1 << (2 * (maxLevelFor(lobe_lambda, tail_share) + 1))) - 1) : 0x7fffffff;
   ivec2 range = overlapRange(lobe_axis, lobe_lambda);
   for (int k = range.x; k < range.y; ++k) {
+    if (binSrbfs[k] >= end) break;
     LightSg g = srbfs[binSrbfs[k]];
     if (g.amplitude.xyz == vec3(0.0)) continue;
     addLight(lobe_axis, lobe_lambda, g.axis_lambda.xyz, g.axis_lambda.w, g.amplitude.xyz, set, shaded, unshadowed,
@@ -360,13 +380,25 @@ uvec4 gCount;
 float gPeakVisibility[kMaxPeaks];
 ConeSet gSet;
 
-void emitLobe(vec3 axis, float lambda, vec3 weight, bool cosine) {
+void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosine) {
   traceLobeCones(axis, lambda, gOrigin, gSet);
   gCosine = cosine;
   gCosineNormal = axis;
   coneCosineRatios(axis, cosine, gSet);
   vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
-  shadeLobe(axis, lambda, gSet, shaded, unshadowed, gCount);
+  // A GGX tail is seen through one visible share, the lobe's own (its cones weighted by the
+  // lobe alone), not one per lighting SG: the tail is smooth, the sharp lights (peaks) have their
+  // own cones, and per-SG shares were the tail's largest cost (same errors, bench render).
+  gLobeShare = -1.0;
+  if (tail_share > 0.0 && !gSet.all_visible) {
+    SgProduct q;
+    q.axis = axis;
+    q.lambda = lambda;
+    q.log_amplitude = 0.0;
+    gLobeShare = visibleShare(q, gSet);
+    gCount.z += uint(gSet.count);
+  }
+  shadeLobe(axis, lambda, tail_share, gSet, shaded, unshadowed, gCount);
   shadePeaks(axis, lambda, cosine, gPeakVisibility, shaded, unshadowed);
   gRadiance += weight * shaded;
   gCount.x += 1u;
@@ -381,6 +413,7 @@ void main() {
   gLinear = vec3(0.0);
   gGrazing = vec3(0.0);
   gCosine = false;
+  gLobeShare = -1.0;
   gCosineNormal = vec3(0.0, 1.0, 0.0);
   vec4 gp = imageLoad(uGPosition, pixel);
   vec4 car = vec4(0.0);
@@ -405,7 +438,7 @@ void main() {
           gLinear = cosine ? t.cosine_linear : vec3(0.0);
           gGrazing = cosine ? t.cosine_grazing : vec3(0.0);
           gView = wo;
-          emitLobe(axis, lambda, weight, cosine);
+          emitLobe(axis, lambda, termLobeTailShare(t, i), weight, cosine);
         }
       }
     }
@@ -428,7 +461,7 @@ void main() {
       shadow.a = 1.0;
       if (!lit) {
         vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
-        shadeLobe(up, kCosineSgLambda, gSet, shaded, unshadowed, gCount);
+        shadeLobe(up, kCosineSgLambda, 0.0, gSet, shaded, unshadowed, gCount);
         shadePeaks(up, kCosineSgLambda, true, gPeakVisibility, shaded, unshadowed);
         gCount.x += 1u;
         for (int c = 0; c < 3; ++c) shadow[c] = unshadowed[c] > 0.0 ? clamp(shaded[c] / unshadowed[c], 0.0, 1.0) : 1.0;

@@ -155,8 +155,9 @@ std::span<const int> OverlapBins::Query(const glm::dvec3& direction, double lamb
   return std::span<const int>(level.srbfs).subspan(begin, end - begin);
 }
 
-int OverlapBins::MaxLevel(double lambda) const {
-  return DepthFor(lambda, options_.lighting_levels, options_.min_retention);
+int OverlapBins::MaxLevel(double lambda, double share) const {
+  if (!(share > 0)) return 0;
+  return DepthFor(lambda, options_.lighting_levels, options_.min_retention / share);
 }
 
 std::size_t OverlapBins::bytes() const {

@@ -60,8 +60,10 @@ class OverlapBins {
 
   // The SRBFs (global indices) that a lobe of sharpness `lambda` around unit `direction` needs.
   std::span<const int> Query(const glm::dvec3& direction, double lambda) const;
-  // The deepest lighting level that lobe needs.
-  int MaxLevel(double lambda) const;
+  // The deepest lighting level that lobe needs. A lobe that carries only `share` of a pixel's
+  // shading (GGX's tail, material::Lobe::tail_share) shows a level's detail at `share` times what
+  // it keeps of it, so the depth rule asks min_retention / share of it.
+  int MaxLevel(double lambda, double share = 1) const;
 
   const std::vector<OverlapBinLevel>& levels() const { return levels_; }
   const OverlapBinOptions& options() const { return options_; }

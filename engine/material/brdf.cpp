@@ -229,7 +229,21 @@ void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, const Shading
     const glm::dvec3 h = glm::normalize(wi + wo);
     return Schlick(f0, glm::dot(wi, h)) * (SmithG(ndf, alpha, cos_i, cos_o) / (4.0 * cos_i * cos_o));
   };
-  PushWarped(Sg{f.n, NdfSgLambda(alpha), 1.0 / (kPi * alpha * alpha)}, m_of, f, wo, o, out);
+  if (ndf == Ndf::kBeckmann) {
+    PushWarped(Sg{f.n, NdfSgLambda(alpha), 1.0 / (kPi * alpha * alpha)}, m_of, f, wo, o, out);
+    return;
+  }
+  // GGX: the peak SG warped as o says; the tail SG, wide and smooth, by eq. 4.10 alone (splitting
+  // it too would double the glossy lobes and their cones, brdf.h).
+  const GgxSgFit fit = GgxSg(alpha);
+  PushWarped(Sg{f.n, fit.lambda[0], fit.amplitude[0]}, m_of, f, wo, o, out);
+  if (fit.amplitude[1] <= 0) return;
+  LobeOptions tail = o;
+  tail.warp = WarpMode::kIsotropic;
+  const std::size_t first = out->size();
+  PushWarped(Sg{f.n, fit.lambda[1], fit.amplitude[1]}, m_of, f, wo, tail, out);
+  const double share = GgxTailShare(fit);
+  for (std::size_t i = first; i < out->size(); ++i) (*out)[i].tail_share = share;
 }
 
 void LobesOf(const CookTorrance& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
@@ -305,6 +319,39 @@ double NdfSgLambda(double alpha) {
     (integral(mid) > target ? lo : hi) = mid;
   }
   return 0.5 * (lo + hi);
+}
+
+GgxSgFit GgxSg(double alpha) {
+  alpha = ClampAlpha(alpha);
+  const double l0 = NdfSgLambda(alpha);
+  // The fit is GGX's small-α shape; towards α = 1, where GGX flattens to 1/π and one SG of
+  // NdfSgLambda is exact, it fades (linearly in α) into that SG.
+  const double t = std::clamp((kGgxSgFadeEnd - alpha) / (kGgxSgFadeEnd - kGgxSgFadeBegin), 0.0, 1.0);
+  const double scale[2] = {1.0 + t * (kGgxSgLambdaScale[0] - 1.0), kGgxSgLambdaScale[1]};
+  const double weight[2] = {1.0 - t * kGgxSgWeight[1], t * kGgxSgWeight[1]};
+  const auto integral = [](double l) {  // ∫₀¹ e^{λ(x−1)} x dx, as in NdfSgLambda
+    if (l < 1e-3) return 0.5 - l / 6.0 + l * l / 24.0;
+    return 1.0 / l + std::expm1(-l) / (l * l);
+  };
+  double sum = 0;
+  for (int i = 0; i < 2; ++i) sum += weight[i] * integral(scale[i] * l0);
+  const double c = alpha * alpha / (2.0 * sum);  // ∫ D (n·h) = 1
+  GgxSgFit fit;
+  for (int i = 0; i < 2; ++i) {
+    fit.lambda[i] = scale[i] * l0;
+    fit.amplitude[i] = c * weight[i] / (kPi * alpha * alpha);
+  }
+  return fit;
+}
+
+double GgxTailShare(const GgxSgFit& fit) {
+  if (!(fit.amplitude[1] > 0)) return 0.0;
+  double part[2];
+  for (int k = 0; k < 2; ++k) {
+    const double l = fit.lambda[k];
+    part[k] = fit.amplitude[k] * (l < 1e-6 ? 2.0 : -std::expm1(-2.0 * l) / l);
+  }
+  return part[1] / (part[0] + part[1]);
 }
 
 Sg WarpToIncident(const Sg& half_vector_lobe, const glm::dvec3& wo) {

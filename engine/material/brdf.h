@@ -36,6 +36,11 @@
 // - Cook-Torrance: D (GGX or Beckmann, α) ≈ SG(h; n, λ(α), μ = 1/(π α²)), with λ(α) solving
 //   2π μ ∫₀¹ e^{λ(x−1)} x dx = 1: the SG has D's peak value and D's normalisation over the
 //   hemisphere. λ(α) → 2/α² − 1 as α → 0, and λ(1) = 0 (GGX at α = 1 *is* the constant 1/π).
+//   That one SG suits Beckmann (a Gaussian in tan θ_h); GGX's peak is sharper and its tails far
+//   heavier (1/(1 + tan²θ_h/α²)² against a Gaussian), so GGX is two SGs around n (GgxSg): a
+//   narrow one holding the peak and a wide one, with 11 % of the peak and 45 % of the energy, for
+//   the tail. The narrow one is warped as LobeOptions says; the wide one always by eq. 4.10 (its
+//   anisotropy matters less, and splitting it would double the glossy lobes and their cones).
 //   F is Schlick's, G the height-correlated Smith term 1/(1 + Λ(wi) + Λ(wo)) of the chosen NDF.
 // - glTF metallic-roughness, as Blender's glTF importer makes it: a Principled BSDF (v1, Blender
 //   3.4, specular 0.5), the material our Cycles references and street_a's were rendered with.
@@ -53,8 +58,8 @@
 //   wi·wo taken at the mean direction), plus the GGX lobe.
 //
 // What that costs (brdf_test.cpp prints the table; SG light λ 10–1000, views 0–75°, error against
-// quadrature): with a light aimed at the mirror direction 0.03 % (Phong n = 10⁴) to ~50 % (GGX,
-// whose peak is sharper and tails heavier than any one SG); with the light 25° off it, up to
+// quadrature): with a light aimed at the mirror direction 0.03 % (Phong n = 10⁴) to ~40 % (GGX
+// α = 0.3 and the glTF paint, ~50 % with one SG for D); with the light 25° off it, up to
 // ~100 % for glossy lobes, because eq. 4.10's isotropic lobe is too narrow in the plane of
 // incidence — WarpMode::kAnisotropicSplit cuts those to ~30 %. Lambertian: ≤ 0.3 % (the table's
 // interpolation). At grazing views (85–89°) the cosine at the axis goes to 0 and the errors of
@@ -72,6 +77,17 @@ namespace odvr::material {
 inline constexpr double kMinCosView = 1e-3;
 inline constexpr double kMinAlpha = 0.01;  // mirror limit: λ ≈ 2·10⁴ in half-vector space
 inline constexpr int kMaxAnisotropicLobes = 15;
+// GGX's two-SG fit (GgxSg): for small α, D π α² = 1/(1 + u²)² in u = θ_h/α, fitted by
+// Σ_k w_k exp(−s_k u²) with s_k = kGgxSgLambdaScale[k] (the scale of NdfSgLambda ≈ 2/α²), the
+// peak kept (Σ w_k = 1) and the normalisation (Σ w_k/s_k = 1): s and w chosen to minimise the worst
+// relative error of D blurred by Gaussian lights of σ 0.2–4 α, at the peak and 1–3 σ off it:
+// 6.4 % against one SG's 39 %. The narrow SG holds the peak, the wide one GGX's heavy tail.
+inline constexpr double kGgxSgLambdaScale[2] = {1.625, 0.25};
+inline constexpr double kGgxSgWeight[2] = {0.886364, 0.113636};
+// Beyond small α GGX's shape departs from the fit's (1 at α = 1 is the constant 1/π): brdf_test's
+// GGX α = 0.3 and 0.7 were worse with the full fit than with one SG at 0.7.
+inline constexpr double kGgxSgFadeBegin = 0.3;
+inline constexpr double kGgxSgFadeEnd = 0.7;
 // Wang et al. 2009's single-SG fit of the clamped cosine max(0, n·w).
 inline constexpr double kCosineSgLambda = 2.133;
 inline constexpr double kCosineSgAmplitude = 1.170;
@@ -149,6 +165,10 @@ struct Lobe {
   bool clamped_cosine = false;
   glm::dvec3 grazing{0};  // Burley's FL terms (MetallicRoughness), relative to weight
   glm::dvec3 view{0};
+  // GGX's tail SG (GgxSg): its share of D (GgxTailShare); 0 for every other lobe. A renderer
+  // lights a tail only with the lighting levels whose detail it shows at that share
+  // (lighting::OverlapBins::MaxLevel), the finer levels' energy moved onto the deepest of them.
+  double tail_share = 0;
 };
 
 enum class CosineTerm { kAtLobeAxis, kAsSg };
@@ -186,6 +206,18 @@ glm::dvec3 ShadeUnderSgLights(std::span<const Lobe> lobes, std::span<const light
 // Building blocks, public for the renderer's shaders to mirror and for tests.
 // λ of the SG fit of a GGX/Beckmann NDF of roughness α (see the header comment).
 double NdfSgLambda(double alpha);
+// GGX's D as two SGs in half-vector space around n (brdf.h's header): for α ≤ kGgxSgFadeBegin
+// λ_k = kGgxSgLambdaScale[k] NdfSgLambda(α), μ_k = c kGgxSgWeight[k] / (π α²), c making ∫ D (n·h)
+// = 1 exactly (c → 1 as α → 0); from there to kGgxSgFadeEnd blended into the one SG of
+// NdfSgLambda (the wide SG's weight → 0). amplitude[1] is 0 from kGgxSgFadeEnd on.
+struct GgxSgFit {
+  double lambda[2];
+  double amplitude[2];
+};
+GgxSgFit GgxSg(double alpha);
+// The wide SG's share of the fit's ∫D: μ₁ I(λ₁) / Σ μ_k I(λ_k), I(λ) = (1 − e^{−2λ})/λ; 0.45 for
+// α ≤ kGgxSgFadeBegin, 0 without a wide SG.
+double GgxTailShare(const GgxSgFit& fit);
 // Eq. 4.10: warps an SG in half-vector space to incident-direction space for the view wo.
 lighting::Sg WarpToIncident(const lighting::Sg& half_vector_lobe, const glm::dvec3& wo);
 // The clamped cosine around n as an SG.

@@ -116,12 +116,15 @@ double FullIntegral(const material::Lobe& lobe, const Sg& l) {
   return lighting::IntegralOfProduct(unit, l) * material::LinearFactor(lobe.linear, product);
 }
 
-void AddLight(const material::Lobe& lobe, const lighting::RgbSg& light, const ConeSet& set, glm::dvec3* shaded,
-              glm::dvec3* unshadowed, PixelCounts* count) {
+// lobe_share ≥ 0: the visible share of the whole lobe, for every light (a GGX tail, ShadeLobe).
+void AddLight(const material::Lobe& lobe, const lighting::RgbSg& light, const ConeSet& set, double lobe_share,
+              glm::dvec3* shaded, glm::dvec3* unshadowed, PixelCounts* count) {
   const Sg l{light.axis, light.lambda, 1.0};
   const double full = FullIntegral(lobe, l);
   double share = 1;
-  if (!set.all_visible) {
+  if (!set.all_visible && lobe_share >= 0) {
+    share = lobe_share;
+  } else if (!set.all_visible) {
     const LogProduct prod = ProductLog(lobe.sg.axis, lobe.sg.lambda, l.axis, l.lambda);
     share = VisibleShare(Sg{prod.axis, prod.lambda, 1.0}, set);
     count->triples += static_cast<unsigned>(set.cones.size());
@@ -134,16 +137,30 @@ void AddLight(const material::Lobe& lobe, const lighting::RgbSg& light, const Co
 void ShadeLobe(const material::Lobe& lobe, const ConeSet& set, const ReferenceInputs& in, glm::dvec3* shaded,
                glm::dvec3* unshadowed, PixelCounts* count) {
   const PreparedLighting& L = *in.lighting;
-  if (L.constant != glm::vec3(0)) AddLight(lobe, {{0, 1, 0}, 0.0, L.constant}, set, shaded, unshadowed, count);
+  // A GGX tail (material::Lobe::tail_share) is seen through the lobe's own visible share, not one
+  // per light (render_shade.comp's emitLobe says why), and only by the lighting levels it needs.
+  const bool tail = lobe.tail_share > 0;
+  double lobe_share = -1;
+  if (tail && !set.all_visible) {
+    lobe_share = VisibleShare(Sg{lobe.sg.axis, lobe.sg.lambda, 1.0}, set);
+    count->triples += static_cast<unsigned>(set.cones.size());
+  }
+  if (L.constant != glm::vec3(0))
+    AddLight(lobe, {{0, 1, 0}, 0.0, L.constant}, set, lobe_share, shaded, unshadowed, count);
   if (in.bins && !L.srbfs.empty()) {
+    // The lists are sorted by global index, so by level: a tail stops below its deepest level.
+    const int end = tail ? lighting::GlobalSrbfIndex(in.bins->MaxLevel(lobe.sg.lambda, lobe.tail_share) + 1, 0)
+                         : std::numeric_limits<int>::max();
     for (int g : in.bins->Query(L.env_from_world * lobe.sg.axis, lobe.sg.lambda)) {
+      if (g >= end) break;
       const auto& s = L.srbfs[static_cast<std::size_t>(g)];
       if (s.amplitude == glm::vec3(0)) continue;
-      AddLight(lobe, s, set, shaded, unshadowed, count);
+      AddLight(lobe, s, set, lobe_share, shaded, unshadowed, count);
     }
   }
   const std::size_t first = in.options.peak_cones ? TripleProductRenderer::kMaxPeakCones : 0;
-  for (std::size_t k = first; k < L.peaks.size(); ++k) AddLight(lobe, L.peaks[k], set, shaded, unshadowed, count);
+  for (std::size_t k = first; k < L.peaks.size(); ++k)
+    AddLight(lobe, L.peaks[k], set, lobe_share, shaded, unshadowed, count);
 }
 
 void ShadePeaks(const material::Lobe& lobe, const std::vector<double>& peak_visibility, const ReferenceInputs& in,

@@ -1,6 +1,7 @@
 #include "engine/render/triple_product_renderer.h"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -535,11 +536,18 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   }
 
   SetMaterials(options_.materials);
-  // λα² of the NDF's SG fit on α ∈ [kMinAlpha, 1] (brdf_lobes.glsl interpolates it).
-  std::vector<float> table(512);
-  for (std::size_t i = 0; i < table.size(); ++i) {
-    const double a = material::kMinAlpha + (1.0 - material::kMinAlpha) * static_cast<double>(i) / (table.size() - 1);
-    table[i] = static_cast<float>(material::NdfSgLambda(a) * a * a);
+  // Per α ∈ [kMinAlpha, 1]: λα² of the NDF's one-SG fit, then GGX's two SGs (λ_k α², μ_k π α²);
+  // brdf_lobes.glsl interpolates them.
+  std::vector<glm::vec4> table(2 * 512);
+  for (std::size_t i = 0; i < table.size() / 2; ++i) {
+    const double a =
+        material::kMinAlpha + (1.0 - material::kMinAlpha) * static_cast<double>(i) / (table.size() / 2 - 1);
+    const double a2 = a * a;
+    const material::GgxSgFit fit = material::GgxSg(a);
+    table[2 * i] = glm::vec4(static_cast<float>(material::NdfSgLambda(a) * a2), 0, 0, 0);
+    table[2 * i + 1] = glm::vec4(static_cast<float>(fit.lambda[0] * a2), static_cast<float>(fit.lambda[1] * a2),
+                                 static_cast<float>(fit.amplitude[0] * sphere::kPi * a2),
+                                 static_cast<float>(fit.amplitude[1] * sphere::kPi * a2));
   }
   im.ndf_table = MakeBuffer(table);
   // The clamped cosine's two tables interleaved, so that the shader reads both with one vec2.
@@ -842,6 +850,14 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
         .Set("uGroundShadowsBounce", options_.ground && options_.ground_shadows_bounce ? 1 : 0)
         .Set("uGroundLitHalfAngle", static_cast<float>(kGroundLitHalfAngle));
+    {
+      std::array<float, 6> level_lambda;
+      level_lambda.fill(3e38f);  // beyond the levels used: never deep enough
+      for (int s = 0; s < options_.lighting_levels; ++s)
+        level_lambda[static_cast<std::size_t>(s)] = static_cast<float>(sphere::Healpix(s).Lambda());
+      glProgramUniform1fv(sp.id(), sp.Uniform("uLevelLambda"), 6, level_lambda.data());
+      sp.Set("uMinRetention", static_cast<float>(options_.overlap_min_retention));
+    }
     SetGroundPeakUniforms(sp, im.lighting, options_.peak_cones);
     SetConeTraceUniforms(sp, im.spec, geometry, options_.trace);
     if (geometry) glBindTextureUnit(0, im.voxelizer->texture().id());

@@ -61,6 +61,19 @@ TEST(OverlapBins, DepthFollowsTheSeedsTable) {
   EXPECT_EQ(OverlapBins::DepthFor(2, 5, 1.0 / 13), 1);
 }
 
+// A lobe carrying only `share` of a pixel's shading (GGX's tail, 45 %) shows a level's detail at
+// share × what it keeps of it: GGX α = 0.0625's tail at normal incidence (λ ≈ 32) keeps 8.1 % of
+// level 3 (λ 362), but that is 3.7 % of the pixel, below 1/13.
+TEST(OverlapBins, ALobeWithAShareOfTheShadingNeedsFewerLevels) {
+  EXPECT_EQ(Bins().MaxLevel(32), 3);
+  EXPECT_EQ(Bins().MaxLevel(32, 1.0), 3);
+  EXPECT_EQ(Bins().MaxLevel(32, 0.45), 2);
+  EXPECT_EQ(Bins().MaxLevel(128, 0.45), 3);  // level 4: 0.45 × 128 / (1449 + 128) = 3.7 %
+  EXPECT_EQ(Bins().MaxLevel(1e4, 0.45), 4);
+  EXPECT_EQ(Bins().MaxLevel(1e4, 0.05), 0);  // min_retention / share > 1: no level but the first
+  EXPECT_EQ(Bins().MaxLevel(1e4, 0.0), 0);
+}
+
 TEST(OverlapBins, ListsLoseAtMostAFewThousandthsOfWhatALobeGathers) {
   std::mt19937 rng(7);
   std::normal_distribution<double> normal;

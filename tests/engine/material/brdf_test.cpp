@@ -249,10 +249,18 @@ TEST(Brdf, WardSgShadingMatchesQuadrature) {
                  {"Ward aniso 0.3x0.1", Ward{glm::dvec3(0.5), 0.3, 0.1}, 0.08, 0.44, 0.76}});
 }
 
+// GGX as two SGs (GgxSg) against the one SG it replaced, eq. 4.10 (split warp): α = 0.05 aimed
+// 48 → 29 % (28 → 14 %), α = 0.3 aimed 52 → 37 % (30 → 20 %), 25° off 71 → 77 % (41 → 24 %);
+// α = 0.7 is past the fade, one SG as before. The split warp got worse in three places (not
+// asserted here; the bounds are eq. 4.10's): α = 0.05 25° off 94 → 96 %, and the glTF paint and
+// metal below. The cause is the tail SG, 45 % of D, warped by eq. 4.10 alone: too narrow in the
+// plane of incidence, where the light 25° off lies (and too wide across it). Splitting the tail
+// too was measured: α = 0.05 25° off 55 %, glTF paint aimed 8.3 %, 25° off 5.5 %, glTF metal
+// 25° off 18 %; it costs the renderer a second split row of lobes per glossy pixel, so not yet.
 TEST(Brdf, CookTorranceSgShadingMatchesQuadrature) {
   MeasureModels(
-      {{"Cook-Torrance GGX a=0.05", CookTorrance{glm::dvec3(0.9), 0.05, Ndf::kGgx}, 0.51, 1.0, 1.25},
-       {"Cook-Torrance GGX a=0.3", CookTorrance{glm::dvec3(0.9), 0.3, Ndf::kGgx}, 0.54, 0.74, 1.92},
+      {{"Cook-Torrance GGX a=0.05", CookTorrance{glm::dvec3(0.9), 0.05, Ndf::kGgx}, 0.30, 0.98, 1.1},
+       {"Cook-Torrance GGX a=0.3", CookTorrance{glm::dvec3(0.9), 0.3, Ndf::kGgx}, 0.39, 0.78, 1.8},
        {"Cook-Torrance GGX a=0.7", CookTorrance{glm::dvec3(0.9), 0.7, Ndf::kGgx}, 0.38, 0.37, 1.0},
        {"Cook-Torrance Beckmann m=0.1", CookTorrance{glm::dvec3(0.9), 0.1, Ndf::kBeckmann}, 0.24, 0.98, 1.77},
        {"Cook-Torrance Beckmann m=0.4", CookTorrance{glm::dvec3(0.9), 0.4, Ndf::kBeckmann}, 0.34, 0.61, 1.15}});
@@ -261,9 +269,11 @@ TEST(Brdf, CookTorranceSgShadingMatchesQuadrature) {
 // The rough paint's bounds are the principled diffuse's: its grazing-light terms (FL, Burley's
 // darkening and retro-reflection for light near the horizon) reach the lobe only through the
 // directional albedo, so a sharp light at 75° off the normal sees them averaged (35 % aimed).
+// Split warp, one SG → two for D: glTF paint r = 0.4 aimed 21 → 26 %, 25° off 9.0 → 12 %; glTF
+// metal r = 0.3 aimed 31 → 14 %, 25° off 72 → 84 % (the tail's eq. 4.10 warp, see above).
 TEST(Brdf, MetallicRoughnessSgShadingMatchesQuadrature) {
-  MeasureModels({{"glTF paint r=0.4 m=0", MetallicRoughness{glm::dvec3(0.6, 0.1, 0.1), 0.0, 0.4}, 0.54, 0.66, 2.65},
-                 {"glTF metal r=0.3 m=1", MetallicRoughness{glm::dvec3(0.9, 0.8, 0.6), 1.0, 0.3}, 0.49, 1.0, 1.97},
+  MeasureModels({{"glTF paint r=0.4 m=0", MetallicRoughness{glm::dvec3(0.6, 0.1, 0.1), 0.0, 0.4}, 0.41, 0.28, 2.15},
+                 {"glTF metal r=0.3 m=1", MetallicRoughness{glm::dvec3(0.9, 0.8, 0.6), 1.0, 0.3}, 0.27, 0.9, 1.6},
                  {"glTF rough r=0.9 m=0", MetallicRoughness{glm::dvec3(0.5), 0.0, 0.9}, 0.36, 0.20, 1.05}});
 }
 
@@ -372,7 +382,10 @@ TEST(Brdf, PhongTenThousandStaysFiniteAndAccurate) {
 // Hard case: light from below the horizon gives ~0 (the quadrature's answer is < 0.1 % of the
 // light from above). The diffuse lobe is the clamped cosine itself (no leak: the SG light's own
 // tail above the horizon is all it sees); specular lobes leak only through their own SG tails: measured ≤ 0.8 %
-// (Beckmann m = 0.3 at a 60° view, whose warped lobe is broad and near the horizon), ≤ 0.05 % otherwise.
+// (Beckmann m = 0.3 at a 60° view, whose warped lobe is broad and near the horizon), ≤ 0.05 % otherwise;
+// but GGX's wide tail SG (GgxSg), broad and near the horizon at a 60° view: 1.95 % for glTF r = 0.5.
+// That is the lobe itself (its SG reaches below the horizon, where f·cos is 0), not which lighting
+// the renderer gives it, so lighting the tail with fewer levels (Lobe::tail_share) leaves it as is.
 TEST(Brdf, LightBelowTheHorizonGivesAlmostNothing) {
   const ShadingFrame fr = ShadingFrame::FromNormal(glm::normalize(glm::dvec3(0.2, 1.0, 0.3)), glm::dvec3(1, 0, 0.1));
   const std::vector<std::pair<std::string, Brdf>> models = {
@@ -396,7 +409,7 @@ TEST(Brdf, LightBelowTheHorizonGivesAlmostNothing) {
         const RgbSg below{axis, 100, glm::vec3(1)};
         const double sg = ShadeUnderSgLight(lobes, below).x;
         const double ref = Reference(brdf, fr, wo, below).x;
-        EXPECT_LE(sg, 0.01 * above) << name << " view " << view_deg;
+        EXPECT_LE(sg, (name == "glTF" ? 0.025 : 0.01) * above) << name << " view " << view_deg;
         EXPECT_GE(sg, 0.0) << name;
         EXPECT_LE(ref, 1e-3 * above) << name << " (the reference itself)";
       }
@@ -418,6 +431,59 @@ TEST(Brdf, NdfLambdaKeepsPeakAndNormalisation) {
       EXPECT_NEAR(lambda, 2 / (alpha * alpha) - 1, 1e-2 * lambda) << alpha;
     }
   }
+}
+
+// GGX's two SGs: normalised for every α, the peak kept as α → 0 (where Σ w_k = 1), closer to D
+// than the one SG of NdfSgLambda over θ_h (the heavy tail) while the fit is whole, and that one
+// SG from kGgxSgFadeEnd on.
+TEST(Brdf, GgxTwoSgsKeepNormalisationAndFollowTheTail) {
+  for (double alpha : {0.01, 0.05, 0.2, 0.3, 0.5, 0.9, 1.0}) {
+    const GgxSgFit fit = GgxSg(alpha);
+    const auto d2 = [&](const glm::dvec3& h) {
+      double v = 0;
+      for (int k = 0; k < 2; ++k) v += lighting::Evaluate(Sg{{0, 1, 0}, fit.lambda[k], fit.amplitude[k]}, h);
+      return v;
+    };
+    const glm::dvec3 hemi = PoleQuadrature([&](const glm::dvec3& h) { return glm::dvec3(h.y > 0 ? d2(h) * h.y : 0.0); },
+                                           glm::dvec3(0, 1, 0), 2000, 8);
+    EXPECT_NEAR(hemi.x, 1.0, 1e-3) << alpha;
+    if (alpha <= 0.05) {
+      EXPECT_NEAR(d2({0, 1, 0}) * kPi * alpha * alpha, 1.0, 0.01) << alpha;
+    }
+    if (alpha <= kGgxSgFadeBegin) {
+      EXPECT_GT(fit.lambda[0], 4 * fit.lambda[1]) << alpha;
+      // D at tan θ_h = 3α: GGX's 1/(1 + 9)² of the peak; one SG gives e^{−9} of it.
+      const double t = 3 * alpha, c = 1 / std::sqrt(1 + t * t);
+      const glm::dvec3 h{std::sqrt(1 - c * c), c, 0};
+      const double a2 = alpha * alpha, ggx = a2 / (kPi * std::pow(c * c * (a2 - 1) + 1, 2));
+      const double one = lighting::Evaluate(Sg{{0, 1, 0}, NdfSgLambda(alpha), 1 / (kPi * a2)}, h);
+      EXPECT_LT(std::abs(d2(h) - ggx), 0.25 * std::abs(one - ggx)) << alpha;
+    }
+    // The tail's share of D: Σ w_k/s_k = 1 makes it w_1/s_1 while the fit is whole.
+    if (alpha <= kGgxSgFadeBegin) {
+      EXPECT_NEAR(GgxTailShare(fit), kGgxSgWeight[1] / kGgxSgLambdaScale[1], 0.01) << alpha;
+    }
+    if (alpha >= kGgxSgFadeEnd) {
+      EXPECT_EQ(GgxTailShare(fit), 0.0) << alpha;
+      EXPECT_EQ(fit.amplitude[1], 0.0) << alpha;
+      EXPECT_NEAR(fit.lambda[0], NdfSgLambda(alpha), 1e-12) << alpha;
+    }
+  }
+}
+
+// The renderer lights GGX's tail SG with fewer lighting levels (material::Lobe::tail_share): it
+// must be the one lobe that says so, after the peak's split row.
+TEST(Brdf, OnlyGgxsTailLobeCarriesItsShare) {
+  const ShadingFrame fr = ShadingFrame::FromNormal(glm::normalize(glm::dvec3(0.2, 1.0, 0.3)), glm::dvec3(1, 0, 0.1));
+  const LobeOptions split{CosineTerm::kAtLobeAxis, WarpMode::kAnisotropicSplit};
+  const std::vector<Lobe> lobes = Lobes(MetallicRoughness{glm::dvec3(0.6), 0.9, 0.25}, fr, ViewAt(fr, 60), split);
+  ASSERT_GE(lobes.size(), 4u);  // the diffuse lobe, a split row of ≥ 2 peak SGs, the tail
+  for (std::size_t i = 0; i + 1 < lobes.size(); ++i) EXPECT_EQ(lobes[i].tail_share, 0.0) << i;
+  EXPECT_NEAR(lobes.back().tail_share, kGgxSgWeight[1] / kGgxSgLambdaScale[1], 0.01);
+  for (const Lobe& l : Lobes(CookTorrance{glm::dvec3(0.9), 0.1, Ndf::kBeckmann}, fr, ViewAt(fr, 60), split))
+    EXPECT_EQ(l.tail_share, 0.0);
+  for (const Lobe& l : Lobes(CookTorrance{glm::dvec3(0.9), 0.8, Ndf::kGgx}, fr, ViewAt(fr, 60), split))
+    EXPECT_EQ(l.tail_share, 0.0);  // past the fade: one SG
 }
 
 TEST(Brdf, WarpAtNormalIncidenceQuartersLambda) {
