@@ -58,17 +58,7 @@ struct FrameScan {
   std::vector<float> block_max;
 };
 
-// The pass every frame pays for, so it is written for the compiler to vectorize: the interleaved
-// RGB floats are taken four pixels (12 floats) at a time into per-lane sums, minima and maxima,
-// with no luminance and no division per pixel. Per pixel in double it took 1.5 ms of a
-// 1024×512 frame's 2 ms detection (perf, sky.exr enlarged as the bench does).
-//
-// With `coarse`, the same pass also sums each row into the frame box-averaged by `coarse_factor`
-// while the row is in cache, with DownsampleBox's own halves, so the result is that function's
-// bit for bit.
-//
-// With `source`, `frame` is written first, row by row, as `source` box-averaged by
-// `source_factor` (DownsampleBox's result bit for bit), each row scanned while in cache.
+// Four floats in registers (GCC's vector extension), and three of them: four RGB pixels.
 using V4 = float __attribute__((vector_size(16)));
 V4 Load4(const float* p) {
   V4 v;
@@ -88,6 +78,17 @@ void Load12(const float* in, V4* a, V4* b, V4* c) {
   *c = Load4(in + 8);
 }
 
+// The pass every frame pays for, so it is written for the compiler to vectorize: the interleaved
+// RGB floats are taken eight pixels (24 floats) at a time into per-lane sums, minima and maxima,
+// with no luminance and no division per pixel. Per pixel in double it took 1.5 ms of a
+// 1024×512 frame's 2 ms detection (perf, sky.exr enlarged as the bench does).
+//
+// With `coarse`, the same pass also sums each row into the frame box-averaged by `coarse_factor`
+// while the row is in cache, with DownsampleBox's own halves, so the result is that function's
+// bit for bit.
+//
+// With `source`, `frame` is written first, row by row, as `source` box-averaged by
+// `source_factor` (DownsampleBox's result bit for bit), each row scanned while in cache.
 FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da, int block, int coarse_factor = 1,
                sphere::EquirectImage* coarse = nullptr, const sphere::EquirectImage* source = nullptr,
                int source_factor = 1) {
@@ -197,14 +198,6 @@ bool IsBright(const float* p, double threshold, bool ldr) {
   return ldr ? std::min({p[0], p[1], p[2]}) >= threshold : Luminance(p) > threshold;
 }
 
-// The bright pixels grouped into components, 8-connected on the sphere: joined across the ±180°
-// seam, and all of row 0 (and of row h−1) joined at its pole. Each component's pixels
-// (row·w + col) ascending; components in the order of their first candidate block.
-//
-// Only the pixels of candidate blocks, those whose brightest pixel is bright, are looked at: a
-// sunny frame has a handful. Labelling the whole frame's mask (OpenCV, 8-connected), then
-// walking every label for the seam, the poles and the pixel lists, took about half of the
-// 8 ms a 1024×512 frame's detection took (perf on sky.exr enlarged as the bench does).
 // A zeroed byte per pixel, kept by each thread across frames (two fresh ones of 0.5 MB per
 // 1024-wide frame were faulted in and given back every frame). Whoever marks pixels clears
 // them again, also when it leaves by an exception; one PixelMarks at a time per thread.
@@ -213,9 +206,7 @@ class PixelMarks {
   explicit PixelMarks(std::size_t n) : marks_(Storage()) {
     if (marks_.size() < n) marks_.assign(n, 0);
   }
-  ~PixelMarks() {
-    for (const int p : marked_) marks_[static_cast<std::size_t>(p)] = 0;
-  }
+  ~PixelMarks() { Clear(); }
   PixelMarks(const PixelMarks&) = delete;
   PixelMarks& operator=(const PixelMarks&) = delete;
   unsigned char operator[](int p) const { return marks_[static_cast<std::size_t>(p)]; }
@@ -237,6 +228,14 @@ class PixelMarks {
   std::vector<int> marked_;
 };
 
+// The bright pixels grouped into components, 8-connected on the sphere: joined across the ±180°
+// seam, and all of row 0 (and of row h−1) joined at its pole. Each component's pixels
+// (row·w + col) ascending; components in the order of their first candidate block.
+//
+// Only the pixels of candidate blocks, those whose brightest pixel is bright, are looked at: a
+// sunny frame has a handful. Labelling the whole frame's mask (OpenCV, 8-connected), then
+// walking every label for the seam, the poles and the pixel lists, took about half of the
+// 8 ms a 1024×512 frame's detection took (perf on sky.exr enlarged as the bench does).
 std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, const FrameScan& scan, double threshold,
                                          bool ldr) {
   const int w = frame.width, h = frame.height, block = scan.block;

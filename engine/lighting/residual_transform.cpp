@@ -20,8 +20,9 @@ using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
 // A NaN, Inf or negative value anywhere. Fixed-length lanes without an early exit, which GCC's
-// -O2 vectorizes: std::any_of's branch per value took 0.5 ms of a 1024-wide frame, as long as
-// the two coarse levels of the transform that read it.
+// -O2 vectorizes; std::any_of branched on every value of the frame. With the serial small passes
+// below, the transform to 2 levels at 1024 wide went from 1.47 to 0.86 ms (`odvr bench light`,
+// park and sunset; most of it was spent before the first level).
 bool HasBadPixels(const std::vector<float>& values) {
   constexpr int kLanes = 16;
   float lowest[kLanes] = {}, probe[kLanes] = {};
@@ -40,9 +41,8 @@ bool HasBadPixels(const std::vector<float>& values) {
 }
 
 // Below this many overlap entries a pass runs on the calling thread: the coarse levels' grids
-// (64 wide) hold a few ten thousand, a few ten microseconds of work, and waking the pool's
-// threads for each of a level's passes cost more than that (2 levels at 1024 wide with peaks:
-// 0.30 -> ms in the transform, `odvr bench light`).
+// (64 wide) hold a few ten thousand entries, tens of microseconds of work, and waking the pool's
+// threads for each of a level's passes is not free (see HasBadPixels for the figure).
 constexpr long kSerialEntries = 1L << 16;
 
 // μ_c = Σ r G dA / Σ G dA over R(c), optionally divided by S̄_c; one SRBF per index.
