@@ -54,6 +54,7 @@ struct BenchLightOptions {
   std::string normalization = "partition";
   double region_cutoff = lighting::ResidualTransformOptions{}.region_cutoff;
   double broad_region_cutoff = lighting::ResidualTransformOptions{}.broad_region_cutoff;
+  double keep_threshold = lighting::ResidualTransformOptions{}.keep_threshold;
   bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
 };
 
@@ -398,6 +399,7 @@ int RunBenchLight(BenchLightOptions o) {
             lo.transform.base_width = o.base_width;
             lo.transform.region_cutoff = o.region_cutoff;
             lo.transform.broad_region_cutoff = o.broad_region_cutoff;
+            lo.transform.keep_threshold = o.keep_threshold;
             lo.transform.exact_reconstruction = o.exact_reconstruction;
             lo.transform.normalization = o.normalization == "none"        ? lighting::Normalization::kNone
                                          : o.normalization == "local-sum" ? lighting::Normalization::kLocalSum
@@ -452,6 +454,9 @@ CommandFn AddBenchLight(CLI::App* sub) {
       ->check(CLI::Range(1e-9, 0.4));
   sub->add_option("--broad-region-cutoff", o->broad_region_cutoff, "The cap's cut-off of the levels 0-2")
       ->check(CLI::Range(1e-9, 0.4));
+  sub->add_option("--keep-threshold", o->keep_threshold,
+                  "Drop SRBFs whose largest |amplitude| is under this times the mean radiance")
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
                 "Evaluate every coarser level on each level's grid (default), or magnify the coarser grid's "
                 "reconstruction");
