@@ -320,3 +320,41 @@ bool termLobe(in TermLobes t, int i, vec3 n, vec3 wo, out vec3 axis, out float l
   }
   return true;
 }
+
+// material::GgxLobeResidual: a GGX term's specular D F G / (4 n·wo) at wi (its cosine included)
+// minus the term's non-cosine lobes there; 0 for terms without GGX.
+vec3 ggxLobeResidual(in TermLobes t, vec3 n, vec3 wo, vec3 wi) {
+  if (t.kind != kMCookTorrance || !t.ggx) return vec3(0.0);
+  float cos_i = dot(n, wi), cos_o = dot(n, wo);
+  vec3 r = vec3(0.0);
+  if (cos_i > 0.0) {
+    vec3 h = normalize(wi + wo);
+    float a2 = t.alpha * t.alpha, ch = dot(n, h);
+    float d = ch > 0.0 ? (ch * ch * (a2 - 1.0) + 1.0) : 1.0;
+    float ndf = ch > 0.0 ? a2 / (kLobePi * d * d) : 0.0;
+    float g = 1.0 / (1.0 + smithLambda(true, t.alpha, cos_i) + smithLambda(true, t.alpha, cos_o));
+    r = schlick(t.color, dot(wi, h)) * (ndf * g / (4.0 * cos_o));
+  }
+  for (int i = t.has_cosine ? 1 : 0; i < t.count; ++i) {
+    vec3 axis, weight;
+    float lambda;
+    bool cosine;
+    if (termLobe(t, i, n, wo, axis, lambda, weight, cosine)) r -= weight * exp(lambda * (dot(axis, wi) - 1.0));
+  }
+  return r;
+}
+
+// material::GgxResidualUnderSgLight for a unit light SG (axis, λ): the 7-point degree-5 rule of
+// the light as a 2D Gaussian of σ = 1/√λ in its tangent plane.
+vec3 ggxResidualUnderLight(in TermLobes t, vec3 n, vec3 wo, vec3 c, float lambda) {
+  if (t.kind != kMCookTorrance || !t.ggx) return vec3(0.0);
+  vec3 helper = abs(c.y) < 0.9 ? vec3(0, 1, 0) : vec3(1, 0, 0);
+  vec3 e1 = normalize(cross(c, helper)), e2 = cross(c, e1);
+  float r = 2.0 / sqrt(max(lambda, 1e-6));
+  vec3 sum = 0.5 * ggxLobeResidual(t, n, wo, c);
+  for (int k = 0; k < 6; ++k) {
+    float a = float(k) * kLobePi / 3.0;
+    sum += ggxLobeResidual(t, n, wo, normalize(c + r * (cos(a) * e1 + sin(a) * e2))) / 12.0;
+  }
+  return sum * sgIntegral(lambda);
+}

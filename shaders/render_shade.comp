@@ -378,6 +378,10 @@ vec3 gOrigin;
 vec3 gRadiance;
 uvec4 gCount;
 float gPeakVisibility[kMaxPeaks];
+// Per traced peak, Σ over the lobes of ∫ lobe × peak plus what the GGX lobes leave out under it
+// (material::GgxResidualUnderSgLight); added once per pixel, clamped at 0 and
+// shadowed by the peak's cone (triple_product_reference.cpp does the same).
+vec3 gPeakSum[kMaxPeaks];
 ConeSet gSet;
 
 void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosine) {
@@ -399,8 +403,11 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
     gCount.z += uint(gSet.count);
   }
   shadeLobe(axis, lambda, tail_share, gSet, shaded, unshadowed, gCount);
-  shadePeaks(axis, lambda, cosine, gPeakVisibility, shaded, unshadowed);
   gRadiance += weight * shaded;
+  if (uPeakCones != 0)
+    for (int k = 0; k < kMaxPeaks; ++k)
+      if (k < uPeakCount)
+        gPeakSum[k] += weight * peakIntegral(axis, lambda, cosine, peaks[k].axis_lambda.xyz, peaks[k].axis_lambda.w);
   gCount.x += 1u;
   gCount.y += uint(gSet.count);
 }
@@ -427,6 +434,7 @@ void main() {
     gOrigin = p + uSurfaceOffset * n;
     gRadiance = vec3(0.0);
     tracePeakCones(gOrigin, gPeakVisibility, gCount);
+    for (int k = 0; k < kMaxPeaks; ++k) gPeakSum[k] = vec3(0.0);
     for (int k = 0; k < uTermsPerMaterial; ++k) {
       MaterialTerm term = terms[material * uTermsPerMaterial + k];
       TermLobes t = describeTerm(term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wo);
@@ -441,7 +449,14 @@ void main() {
           emitLobe(axis, lambda, termLobeTailShare(t, i), weight, cosine);
         }
       }
+      if (uPeakCones != 0)
+        for (int j = 0; j < kMaxPeaks; ++j)
+          if (j < uPeakCount)
+            gPeakSum[j] += ggxResidualUnderLight(t, n, wo, peaks[j].axis_lambda.xyz, peaks[j].axis_lambda.w);
     }
+    if (uPeakCones != 0)
+      for (int k = 0; k < kMaxPeaks; ++k)
+        if (k < uPeakCount) gRadiance += max(peaks[k].amplitude.xyz * gPeakSum[k], vec3(0.0)) * gPeakVisibility[k];
     car = vec4(gRadiance, 1.0);
   } else if (uGround != 0) {
     vec3 dir = normalize(uWorldFromCamera * vec3((vec2(pixel) + 0.5 - 0.5 * vec2(uSize)) / uFocal, 1.0));

@@ -531,6 +531,39 @@ glm::dvec3 ShadeUnderSgLight(std::span<const Lobe> lobes, const lighting::RgbSg&
   return sum * glm::dvec3(light.amplitude);
 }
 
+glm::dvec3 GgxLobeResidual(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wi, const glm::dvec3& wo,
+                           std::span<const Lobe> lobes) {
+  const glm::dvec3 v = BendView(frame, wo);
+  const auto* mr = std::get_if<MetallicRoughness>(&brdf);
+  const auto* ct = std::get_if<CookTorrance>(&brdf);
+  if (!mr && !(ct && ct->ndf == Ndf::kGgx)) return glm::dvec3(0);
+  const CookTorrance ggx =
+      mr ? CookTorrance{FromMetallicRoughness(*mr).f0, FromMetallicRoughness(*mr).alpha, Ndf::kGgx} : *ct;
+  const double cos_i = glm::dot(frame.n, wi);
+  glm::dvec3 exact = cos_i > 0 ? Analytic(ggx, frame, wi, v) * cos_i : glm::dvec3(0);
+  for (const Lobe& lobe : lobes)
+    if (!lobe.clamped_cosine)
+      exact -= lobe.weight * (lighting::Evaluate(lobe.sg, wi) * (1.0 + glm::dot(lobe.linear, wi)));
+  return exact;
+}
+
+glm::dvec3 GgxResidualUnderSgLight(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wo,
+                                   std::span<const Lobe> lobes, const Sg& light) {
+  const auto* ct = std::get_if<CookTorrance>(&brdf);
+  if (!std::holds_alternative<MetallicRoughness>(brdf) && !(ct && ct->ndf == Ndf::kGgx)) return glm::dvec3(0);
+  const glm::dvec3 c = light.axis;
+  const glm::dvec3 helper = std::abs(c.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+  const glm::dvec3 e1 = glm::normalize(glm::cross(c, helper)), e2 = glm::cross(c, e1);
+  const double r = 2.0 / std::sqrt(std::max(light.lambda, 1e-6));
+  glm::dvec3 sum = 0.5 * GgxLobeResidual(brdf, frame, c, wo, lobes);
+  for (int k = 0; k < 6; ++k) {
+    const double a = k * kPi / 3;
+    sum +=
+        GgxLobeResidual(brdf, frame, glm::normalize(c + r * (std::cos(a) * e1 + std::sin(a) * e2)), wo, lobes) / 12.0;
+  }
+  return sum * lighting::Integral(light);
+}
+
 glm::dvec3 ShadeUnderSgLights(std::span<const Lobe> lobes, std::span<const lighting::RgbSg> lights) {
   glm::dvec3 sum(0);
   for (const auto& light : lights) sum += ShadeUnderSgLight(lobes, light);

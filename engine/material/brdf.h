@@ -203,6 +203,25 @@ glm::dvec3 ShadeUnderSgLight(std::span<const Lobe> lobes, const lighting::RgbSg&
                              const lighting::Sg* visibility = nullptr);
 glm::dvec3 ShadeUnderSgLights(std::span<const Lobe> lobes, std::span<const lighting::RgbSg> lights);
 
+// What a BRDF's GGX lobes leave out at one incident direction wi: the GGX specular term
+// D F G / (4 n·wo) exactly (its cosine n·wi included) minus the sum of the term's non-cosine lobes
+// at wi (their SGs evaluated there, weights included). `lobes` are that one term's, as AppendLobes
+// made them for wo. 0 for BRDFs without GGX: their lobes are Gaussians like the NDFs they stand
+// for. Why: GGX's tail falls as a power of θ_h, every SG's as a Gaussian, so a compact bright
+// light 20–45° off the mirror direction (a studio softbox) lights a glossy GGX paint through a
+// tail the two SGs hold only a few percent of (docs/benchmarks/render_accuracy.md, "GGX's far
+// tail under a sharp light").
+glm::dvec3 GgxLobeResidual(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wi, const glm::dvec3& wo,
+                           std::span<const Lobe> lobes);
+// ∫ GgxLobeResidual(wi) G(wi) dwi for a sharp SG light G (amplitude included), what a renderer
+// adds to the lobes' ∫ lobe × G: G as a 2D Gaussian of σ = 1/√λ in its tangent plane, integrated
+// by the 7-point degree-5 rule (weight 1/2 at the axis, 1/12 at 2σ every 60° from the tangent
+// normalize(axis × (0, 1, 0)), or × (1, 0, 0) when |axis·y| ≥ 0.9). One point at the axis alone
+// was 18 % low on the windshield, where the softbox is near the mirror direction and the
+// residual turns within the light.
+glm::dvec3 GgxResidualUnderSgLight(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wo,
+                                   std::span<const Lobe> lobes, const lighting::Sg& light);
+
 // Building blocks, public for the renderer's shaders to mirror and for tests.
 // λ of the SG fit of a GGX/Beckmann NDF of roughness α (see the header comment).
 double NdfSgLambda(double alpha);

@@ -224,17 +224,28 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
             const glm::dvec3 wo = glm::normalize(in.camera.position - p);
             lobes.clear();
             const auto& terms = (*in.materials)[static_cast<std::size_t>(material)];
-            if (terms.empty()) {
-              const material::MetallicRoughness mr{
-                  glm::dvec3(g.base[4 * idx], g.base[4 * idx + 1], g.base[4 * idx + 2]), g.base[4 * idx + 3],
-                  g.normal[4 * idx + 3]};
-              material::AppendLobes(mr, frame, wo, &lobes, in.options.lobes);
-            } else {
-              for (const auto& brdf : terms) material::AppendLobes(brdf, frame, wo, &lobes, in.options.lobes);
-            }
             const glm::dvec3 origin =
                 p + n * (in.grid ? in.options.surface_offset_voxels * in.grid->spec().voxel_size : 0.0);
             const std::vector<double> peak_v = TracePeakCones(origin, in, &count);
+            // Per traced peak: Σ over the lobes of ∫ lobe × peak, plus what the GGX lobes leave
+            // out under it (material::GgxResidualUnderSgLight).
+            std::vector<glm::dvec3> peak_sum(in.options.peak_cones ? peak_v.size() : 0, glm::dvec3(0));
+            const auto add_term = [&](const material::Brdf& brdf) {
+              const std::size_t first = lobes.size();
+              material::AppendLobes(brdf, frame, wo, &lobes, in.options.lobes);
+              const std::span<const material::Lobe> own(lobes.data() + first, lobes.size() - first);
+              for (std::size_t k = 0; k < peak_sum.size(); ++k) {
+                const auto& pk = in.lighting->peaks[k];
+                peak_sum[k] += material::GgxResidualUnderSgLight(brdf, frame, wo, own, Sg{pk.axis, pk.lambda, 1.0});
+              }
+            };
+            if (terms.empty()) {
+              add_term(
+                  material::MetallicRoughness{glm::dvec3(g.base[4 * idx], g.base[4 * idx + 1], g.base[4 * idx + 2]),
+                                              g.base[4 * idx + 3], g.normal[4 * idx + 3]});
+            } else {
+              for (const auto& brdf : terms) add_term(brdf);
+            }
             glm::dvec3 radiance(0);
             for (const auto& lobe : lobes) {
               const Sg unit{lobe.sg.axis, lobe.sg.lambda, 1.0};
@@ -242,12 +253,20 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
               const ConeSet set = TraceLobeCones(unit, cosine, origin, in);
               glm::dvec3 shaded(0), unshadowed(0);
               ShadeLobe(lobe, set, in, &shaded, &unshadowed, &count);
-              ShadePeaks(lobe, peak_v, in, &shaded, &unshadowed);
               // A clamped-cosine lobe's weight is the whole of it; an SG lobe's amplitude is apart.
-              radiance += lobe.weight * (cosine ? 1.0 : lobe.sg.amplitude) * shaded;
+              const glm::dvec3 weight = lobe.weight * (cosine ? 1.0 : lobe.sg.amplitude);
+              radiance += weight * shaded;
+              for (std::size_t k = 0; k < peak_sum.size(); ++k)
+                peak_sum[k] +=
+                    weight * FullIntegral(lobe, Sg{in.lighting->peaks[k].axis, in.lighting->peaks[k].lambda, 1.0});
               count.lobes += 1;
               count.cones += static_cast<unsigned>(set.cones.size());
             }
+            // The residual is the BRDF at seven directions: against a peak wider than a sharp
+            // lobe it can overshoot below 0, which no light does.
+            for (std::size_t k = 0; k < peak_sum.size(); ++k)
+              radiance +=
+                  glm::max(glm::dvec3(in.lighting->peaks[k].amplitude) * peak_sum[k], glm::dvec3(0)) * peak_v[k];
             for (int c = 0; c < 3; ++c) result->car.rgb[3 * idx + c] = static_cast<float>(radiance[c]);
             result->car_alpha[idx] = 1.f;
           } else if (in.options.ground) {
