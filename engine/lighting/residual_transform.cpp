@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <glm/geometric.hpp>
 
 #include "engine/core/error.h"
@@ -45,7 +46,9 @@ bool HasBadPixels(const std::vector<float>& values) {
 // threads for each of a level's passes is not free (see HasBadPixels for the figure).
 constexpr long kSerialEntries = 1L << 16;
 
-// μ_c = Σ r G dA / Σ G dA over R(c), optionally divided by S̄_c; one SRBF per index.
+// μ_c = Σ r G dA / Σ G dA over R(c), optionally divided by S̄_c; one SRBF per index. Walks the
+// SRBF's runs (contiguous pixels and weights) in the lists' order, so the sums are those of the
+// entry-by-entry walk.
 void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normalization normalization,
              std::vector<glm::vec3>* mu, ThreadPool* pool) {
   const std::vector<float>& weights =
@@ -59,13 +62,16 @@ void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normali
       [&](long begin, long end) {
         for (long c = begin; c < end; ++c) {
           double acc[3] = {0, 0, 0};
-          for (int e = t.srbf_begin[static_cast<std::size_t>(c)]; e < t.srbf_begin[static_cast<std::size_t>(c) + 1];
-               ++e) {
-            const float w = weights[static_cast<std::size_t>(e)];
-            const float* p = r + 3 * static_cast<std::size_t>(t.srbf_pixel[static_cast<std::size_t>(e)]);
-            acc[0] += w * p[0];
-            acc[1] += w * p[1];
-            acc[2] += w * p[2];
+          for (int k = t.srbf_run_begin[static_cast<std::size_t>(c)];
+               k < t.srbf_run_begin[static_cast<std::size_t>(c) + 1]; ++k) {
+            const LevelTables::SrbfRun& run = t.srbf_runs[static_cast<std::size_t>(k)];
+            const float* w = weights.data() + run.entry;
+            const float* p = r + 3 * static_cast<std::size_t>(run.pixel);
+            for (int i = 0; i < run.length; ++i) {
+              acc[0] += w[i] * p[3 * i];
+              acc[1] += w[i] * p[3 * i + 1];
+              acc[2] += w[i] * p[3 * i + 2];
+            }
           }
           double scale = t.inv_weight_sum[static_cast<std::size_t>(c)];
           if (normalize) scale /= t.local_sum[static_cast<std::size_t>(c)];
@@ -77,30 +83,76 @@ void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normali
       t.srbf_begin.back() < kSerialEntries ? n : 4);
 }
 
-// out(p) = sign · Σ_c μ_c G_c(p) added to `out` (sign −1 subtracts: the residue update).
-void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float sign, sphere::EquirectImage* out,
-                 ThreadPool* pool) {
+// Four floats in registers (GCC's vector extension, as in the peak detector).
+using V4 = float __attribute__((vector_size(16)));
+using I4 = int __attribute__((vector_size(16)));
+V4 Load4(const float* p) {
+  V4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+void Store4(float* p, V4 v) { std::memcpy(p, &v, sizeof v); }
+
+// out(p) = base(p) + sign · Σ_c μ_c G_c(p) (sign −1 subtracts: the residue update; `out` may be
+// `base`). Row by row: each row's runs add μ_c·G into per-channel row sums, four pixels at a
+// time (the by-pixel walk gathered μ and chained every add on the last), SRBFs in the by-pixel
+// lists' order, so every pixel's sum is the one that walk made (the padding adds +0).
+void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float sign, const sphere::EquirectImage& base,
+                 sphere::EquirectImage* out, ThreadPool* pool) {
+  const int width = t.width, stride = (width + 3) / 4 * 4;
+  const float* b = base.rgb.data();
   float* o = out->rgb.data();
   pool->ParallelFor(
-      static_cast<long>(out->pixel_count()),
+      t.height,
       [&](long begin, long end) {
-        for (long p = begin; p < end; ++p) {
-          float acc[3] = {0, 0, 0};
-          for (int e = t.pixel_begin[static_cast<std::size_t>(p)]; e < t.pixel_begin[static_cast<std::size_t>(p) + 1];
-               ++e) {
-            const glm::vec3& m = mu[static_cast<std::size_t>(t.pixel_srbf[static_cast<std::size_t>(e)])];
-            const float g = t.pixel_g[static_cast<std::size_t>(e)];
-            acc[0] += m.x * g;
-            acc[1] += m.y * g;
-            acc[2] += m.z * g;
+        std::vector<float> sums(3 * static_cast<std::size_t>(stride));
+        for (long row = begin; row < end; ++row) {
+          std::fill(sums.begin(), sums.end(), 0.f);
+          for (int k = t.row_run_begin[static_cast<std::size_t>(row)];
+               k < t.row_run_begin[static_cast<std::size_t>(row) + 1]; ++k) {
+            const LevelTables::RowRun& run = t.row_runs[static_cast<std::size_t>(k)];
+            const glm::vec3 m = mu[static_cast<std::size_t>(run.srbf)];
+            const float* g = t.row_g.data() + run.entry;
+            float* sr = sums.data() + 4 * run.block;
+            float* sg = sr + stride;
+            float* sb = sg + stride;
+            const V4 mr = {m.x, m.x, m.x, m.x}, mg = {m.y, m.y, m.y, m.y}, mb = {m.z, m.z, m.z, m.z};
+            for (int i = 0; i < 4 * run.blocks; i += 4) {
+              const V4 g4 = Load4(g + i);
+              Store4(sr + i, Load4(sr + i) + mr * g4);
+              Store4(sg + i, Load4(sg + i) + mg * g4);
+              Store4(sb + i, Load4(sb + i) + mb * g4);
+            }
           }
-          float* q = o + 3 * p;
-          q[0] += sign * acc[0];
-          q[1] += sign * acc[1];
-          q[2] += sign * acc[2];
+          // Back to interleaved RGB, four pixels (12 floats) at a time.
+          const std::size_t first = 3 * static_cast<std::size_t>(row) * width;
+          const float* sr = sums.data();
+          const float* sg = sr + stride;
+          const float* sb = sg + stride;
+          const V4 s4 = {sign, sign, sign, sign};
+          int col = 0;
+          for (; col + 4 <= width; col += 4) {
+            const V4 r = Load4(sr + col), g = Load4(sg + col), bl = Load4(sb + col);
+            const V4 rg_lo = __builtin_shuffle(r, g, I4{0, 4, 1, 5});   // r0 g0 r1 g1
+            const V4 rg_hi = __builtin_shuffle(r, g, I4{2, 6, 3, 7});   // r2 g2 r3 g3
+            const V4 a = __builtin_shuffle(rg_lo, bl, I4{0, 1, 4, 2});  // r0 g0 b0 r1
+            const V4 c =
+                __builtin_shuffle(__builtin_shuffle(rg_lo, rg_hi, I4{3, 0, 4, 5}), bl, I4{0, 5, 2, 3});  // g1 b1 r2 g2
+            const V4 d = __builtin_shuffle(rg_hi, bl, I4{6, 2, 3, 7});                                   // b2 r3 g3 b3
+            const std::size_t i = first + 3 * static_cast<std::size_t>(col);
+            Store4(o + i, Load4(b + i) + s4 * a);
+            Store4(o + i + 4, Load4(b + i + 4) + s4 * c);
+            Store4(o + i + 8, Load4(b + i + 8) + s4 * d);
+          }
+          for (; col < width; ++col) {
+            const std::size_t i = first + 3 * static_cast<std::size_t>(col);
+            o[i] = b[i] + sign * sr[col];
+            o[i + 1] = b[i + 1] + sign * sg[col];
+            o[i + 2] = b[i + 2] + sign * sb[col];
+          }
         }
       },
-      t.pixel_begin.back() < kSerialEntries ? static_cast<long>(out->pixel_count()) : 64);
+      t.srbf_begin.back() < kSerialEntries ? t.height : 4);
 }
 
 glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
@@ -151,7 +203,9 @@ double RegionCutoffOf(const ResidualTransformOptions& options, int level) {
 std::size_t LevelTables::bytes() const {
   return sizeof(int) * (srbf_begin.size() + srbf_pixel.size() + pixel_begin.size() + pixel_srbf.size()) +
          sizeof(float) * (srbf_weight.size() + srbf_partition_weight.size() + inv_weight_sum.size() + local_sum.size() +
-                          pixel_g.size() + pixel_solid_angle.size());
+                          pixel_g.size() + pixel_solid_angle.size() + row_g.size()) +
+         sizeof(int) * (srbf_run_begin.size() + row_run_begin.size()) + sizeof(SrbfRun) * srbf_runs.size() +
+         sizeof(RowRun) * row_runs.size();
 }
 
 LevelTables BuildLevelTables(int level, int width, int height, double region_cutoff, ThreadPool* pool) {
@@ -262,6 +316,60 @@ LevelTables BuildLevelTables(int level, int width, int height, double region_cut
       den += t.srbf_weight[static_cast<std::size_t>(e)];
     }
     if (den > 0) t.local_sum[static_cast<std::size_t>(c)] = static_cast<float>(num / den);
+  }
+  // Runs (see LevelTables): by SRBF, a new one wherever the next entry is not the next pixel;
+  // by row, those cut at the rows' ends and bucketed per row, SRBFs ascending.
+  t.srbf_run_begin.assign(static_cast<std::size_t>(n) + 1, 0);
+  for (int c = 0; c < n; ++c) {
+    const std::size_t first_run = t.srbf_runs.size();
+    t.srbf_run_begin[static_cast<std::size_t>(c)] = static_cast<int>(first_run);
+    int e = t.srbf_begin[static_cast<std::size_t>(c)];
+    for (const auto& [pixel, g] : caps[static_cast<std::size_t>(c)]) {
+      if (t.srbf_runs.size() > first_run && t.srbf_runs.back().pixel + t.srbf_runs.back().length == pixel)
+        ++t.srbf_runs.back().length;
+      else
+        t.srbf_runs.push_back({pixel, 1, e});
+      ++e;
+    }
+  }
+  t.srbf_run_begin.back() = static_cast<int>(t.srbf_runs.size());
+  struct Piece {
+    int row, srbf, col, length, entry;  // entry: by-SRBF entry of the first column
+  };
+  std::vector<Piece> pieces;
+  std::vector<int> per_row(static_cast<std::size_t>(height) + 1, 0);
+  for (int c = 0; c < n; ++c)
+    for (int r = t.srbf_run_begin[static_cast<std::size_t>(c)]; r < t.srbf_run_begin[static_cast<std::size_t>(c) + 1];
+         ++r) {
+      const LevelTables::SrbfRun& run = t.srbf_runs[static_cast<std::size_t>(r)];
+      for (int done = 0; done < run.length;) {
+        const int pixel = run.pixel + done, row = pixel / width, col = pixel % width;
+        const int length = std::min(run.length - done, width - col);
+        pieces.push_back({row, c, col, length, run.entry + done});
+        ++per_row[static_cast<std::size_t>(row) + 1];
+        done += length;
+      }
+    }
+  std::vector<float> srbf_g(entries);
+  for (int c = 0; c < n; ++c) {
+    std::size_t e = static_cast<std::size_t>(t.srbf_begin[static_cast<std::size_t>(c)]);
+    for (const auto& cap : caps[static_cast<std::size_t>(c)]) srbf_g[e++] = cap.second;
+  }
+  t.row_run_begin.assign(per_row.size(), 0);
+  for (std::size_t r = 1; r < per_row.size(); ++r) t.row_run_begin[r] = t.row_run_begin[r - 1] + per_row[r];
+  std::vector<const Piece*> ordered(pieces.size());
+  std::vector<int> row_fill(t.row_run_begin.begin(), t.row_run_begin.end() - 1);
+  for (const Piece& piece : pieces)
+    ordered[static_cast<std::size_t>(row_fill[static_cast<std::size_t>(piece.row)]++)] = &piece;
+  t.row_runs.resize(pieces.size());
+  for (std::size_t k = 0; k < ordered.size(); ++k) {
+    const Piece& piece = *ordered[k];
+    const int block = piece.col / 4, blocks = (piece.col + piece.length + 3) / 4 - block;
+    const std::size_t entry = t.row_g.size();
+    t.row_runs[k] = {piece.srbf, block, blocks, static_cast<int>(entry)};
+    t.row_g.resize(entry + 4 * static_cast<std::size_t>(blocks), 0.f);
+    std::copy_n(srbf_g.begin() + piece.entry, piece.length,
+                t.row_g.begin() + static_cast<long>(entry) + piece.col - 4 * block);
   }
   return t;
 }
@@ -399,10 +507,10 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
           recon.rgb[i + 2] = model.constant.z;
         }
         for (std::size_t l = 0; l < all_mu.size(); ++l)
-          Reconstruct(Tables(static_cast<int>(l), w, h), all_mu[l], 1.0f, &recon, pool_.get());
+          Reconstruct(Tables(static_cast<int>(l), w, h), all_mu[l], 1.0f, recon, &recon, pool_.get());
       } else {
         recon = sphere::UpsampleBilinear(recon, w, h);
-        Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, &recon, pool_.get());
+        Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, recon, &recon, pool_.get());
       }
     }
     const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];
@@ -417,13 +525,12 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     const LevelTables& t = Tables(s, w, h);
     std::vector<glm::vec3> mu, delta;
     Project(t, residue, options_.normalization, &mu, pool_.get());
-    sphere::EquirectImage remaining = residue;
-    Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+    sphere::EquirectImage remaining(w, h);
+    Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
       Project(t, remaining, options_.normalization, &delta, pool_.get());
       for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += delta[c];
-      remaining = residue;
-      Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+      Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     }
     // Model only what the frame needs: drop negligible SRBFs.
     int kept = 0;
@@ -437,8 +544,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
       }
     }
     if (dropped_any) {
-      remaining = residue;
-      Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+      Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     }
     const double after = MeanAbsRadiance(remaining) / report.mean_radiance;
     // The rejection rule looks at the RMS: the mean |residue| may rise when a sun's energy is
