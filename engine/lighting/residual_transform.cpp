@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -24,11 +25,9 @@ double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::
 // -O2 vectorizes; std::any_of branched on every value of the frame. With the serial small passes
 // below, the transform to 2 levels at 1024 wide went from 1.47 to 0.86 ms (`odvr bench light`,
 // park and sunset; most of it was spent before the first level).
-bool HasBadPixels(const std::vector<float>& values) {
+bool HasBadPixels(const float* v, std::size_t n) {
   constexpr int kLanes = 16;
   float lowest[kLanes] = {}, probe[kLanes] = {};
-  const float* v = values.data();
-  const std::size_t n = values.size();
   std::size_t i = 0;
   for (; i + kLanes <= n; i += kLanes)
     for (int j = 0; j < kLanes; ++j) {
@@ -39,6 +38,34 @@ bool HasBadPixels(const std::vector<float>& values) {
   for (; i < n; ++i) bad = bad || !(v[i] >= 0) || std::isinf(v[i]);
   for (int j = 0; j < kLanes; ++j) bad = bad || !(lowest[j] >= 0) || probe[j] != 0.f;
   return bad;
+}
+
+// The finest working grid as `factor`×`factor` box means of a clean input (DownsampleBox bit
+// for bit), in row bands on the pool, each input row checked for bad pixels while it is in
+// cache: at 2048 wide the frame is 25 MB, and the check and the box each read all of it on
+// one thread. False when a pixel is bad (`out` is then not the grid).
+bool DownsampleBoxIfClean(const sphere::EquirectImage& input, int factor, sphere::EquirectImage* out,
+                          ThreadPool* pool) {
+  *out = sphere::EquirectImage(input.width / factor, input.height / factor);
+  std::atomic<bool> bad{false};
+  pool->ParallelFor(
+      out->height,
+      [&](long begin, long end) {
+        std::vector<float> column(3 * static_cast<std::size_t>(input.width));
+        bool band_bad = false;
+        for (long row = begin; row < end; ++row) {
+          std::fill(column.begin(), column.end(), 0.f);
+          for (int dy = 0; dy < factor; ++dy) {
+            const float* in = input.at(0, static_cast<int>(row) * factor + dy);
+            band_bad = HasBadPixels(in, 3 * static_cast<std::size_t>(input.width)) || band_bad;
+            sphere::AddBoxRow(in, input.width, column.data());
+          }
+          sphere::FoldBoxColumns(column.data(), input.width, factor, out->at(0, static_cast<int>(row)));
+        }
+        if (band_bad) bad = true;
+      },
+      8);
+  return !bad;
 }
 
 // Below this many overlap entries a pass runs on the calling thread: the coarse levels' grids
@@ -467,21 +494,25 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
   // Working grids, finest first, each resampled from the next finer one (area-preserving).
   const int levels = options_.levels;
   std::vector<sphere::EquirectImage> grids(static_cast<std::size_t>(levels));
-  {
+  const auto [finest_w, finest_h] = GridOf(levels - 1, input.width, input.height);
+  const int box = input.width / finest_w;
+  const bool boxed = box > 1 && input.width == box * finest_w && input.height == box * finest_h &&
+                     DownsampleBoxIfClean(input, box, &grids.back(), pool_.get());
+  if (!boxed) {
     sphere::EquirectImage clean;
     const sphere::EquirectImage* source = &input;
-    const bool dirty = HasBadPixels(input.rgb);
+    const bool dirty = HasBadPixels(input.rgb.data(), input.rgb.size());
     if (dirty) {
       clean = input;
       const auto [bad, negative] = image::SanitizePixels(&clean);
       spdlog::warn("lighting input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
       source = &clean;
     }
-    for (int s = levels - 1; s >= 0; --s) {
-      const auto [w, h] = GridOf(s, input.width, input.height);
-      const sphere::EquirectImage& finer = s == levels - 1 ? *source : grids[static_cast<std::size_t>(s) + 1];
-      grids[static_cast<std::size_t>(s)] = sphere::ResampleArea(finer, w, h);
-    }
+    grids.back() = sphere::ResampleArea(*source, finest_w, finest_h);
+  }
+  for (int s = levels - 2; s >= 0; --s) {
+    const auto [w, h] = GridOf(s, input.width, input.height);
+    grids[static_cast<std::size_t>(s)] = sphere::ResampleArea(grids[static_cast<std::size_t>(s) + 1], w, h);
   }
   report.prepare_ms = MsSince(start);
 
