@@ -142,66 +142,108 @@ void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normali
       t.srbf_begin.back() < kSerialEntries ? n : 4);
 }
 
+// One row of Σ_c μ_c G_c into per-channel sums (`stride` floats apart, zeroed here): each of
+// the row's runs adds μ_c·G four pixels at a time (the by-pixel walk gathered μ and chained
+// every add on the last), SRBFs in the by-pixel lists' order, so every pixel's sum is the one
+// that walk made (the padding adds +0).
+void RowSums(const LevelTables& t, const std::vector<glm::vec3>& mu, long row, int stride, float* sums) {
+  std::fill(sums, sums + 3 * static_cast<std::size_t>(stride), 0.f);
+  for (int k = t.row_run_begin[static_cast<std::size_t>(row)]; k < t.row_run_begin[static_cast<std::size_t>(row) + 1];
+       ++k) {
+    const LevelTables::RowRun& run = t.row_runs[static_cast<std::size_t>(k)];
+    const glm::vec3 m = mu[static_cast<std::size_t>(run.srbf)];
+    const float* g = t.row_g.data() + run.entry;
+    float* sr = sums + 4 * run.block;
+    float* sg = sr + stride;
+    float* sb = sg + stride;
+    const V4 mr = {m.x, m.x, m.x, m.x}, mg = {m.y, m.y, m.y, m.y}, mb = {m.z, m.z, m.z, m.z};
+    for (int i = 0; i < 4 * run.blocks; i += 4) {
+      const V4 g4 = Load4(g + i);
+      Store4(sr + i, Load4(sr + i) + mr * g4);
+      Store4(sg + i, Load4(sg + i) + mg * g4);
+      Store4(sb + i, Load4(sb + i) + mb * g4);
+    }
+  }
+}
+
+// out = base + sign · sums for one row of `width` RGB pixels, back to interleaved RGB four
+// pixels (12 floats) at a time; `out` may be `base`.
+void AddRowSums(const float* sums, int stride, int width, float sign, const float* b, float* o) {
+  const float* sr = sums;
+  const float* sg = sr + stride;
+  const float* sb = sg + stride;
+  const V4 s4 = {sign, sign, sign, sign};
+  int col = 0;
+  for (; col + 4 <= width; col += 4) {
+    const V4 r = Load4(sr + col), g = Load4(sg + col), bl = Load4(sb + col);
+    const V4 rg_lo = __builtin_shuffle(r, g, I4{0, 4, 1, 5});                                             // r0 g0 r1 g1
+    const V4 rg_hi = __builtin_shuffle(r, g, I4{2, 6, 3, 7});                                             // r2 g2 r3 g3
+    const V4 a = __builtin_shuffle(rg_lo, bl, I4{0, 1, 4, 2});                                            // r0 g0 b0 r1
+    const V4 c = __builtin_shuffle(__builtin_shuffle(rg_lo, rg_hi, I4{3, 0, 4, 5}), bl, I4{0, 5, 2, 3});  // g1 b1 r2 g2
+    const V4 d = __builtin_shuffle(rg_hi, bl, I4{6, 2, 3, 7});                                            // b2 r3 g3 b3
+    const std::size_t i = 3 * static_cast<std::size_t>(col);
+    Store4(o + i, Load4(b + i) + s4 * a);
+    Store4(o + i + 4, Load4(b + i + 4) + s4 * c);
+    Store4(o + i + 8, Load4(b + i + 8) + s4 * d);
+  }
+  for (; col < width; ++col) {
+    const std::size_t i = 3 * static_cast<std::size_t>(col);
+    o[i] = b[i] + sign * sr[col];
+    o[i + 1] = b[i + 1] + sign * sg[col];
+    o[i + 2] = b[i + 2] + sign * sb[col];
+  }
+}
+
 // out(p) = base(p) + sign · Σ_c μ_c G_c(p) (sign −1 subtracts: the residue update; `out` may be
-// `base`). Row by row: each row's runs add μ_c·G into per-channel row sums, four pixels at a
-// time (the by-pixel walk gathered μ and chained every add on the last), SRBFs in the by-pixel
-// lists' order, so every pixel's sum is the one that walk made (the padding adds +0).
+// `base`), row by row.
 void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float sign, const sphere::EquirectImage& base,
                  sphere::EquirectImage* out, ThreadPool* pool) {
   const int width = t.width, stride = (width + 3) / 4 * 4;
-  const float* b = base.rgb.data();
-  float* o = out->rgb.data();
   pool->ParallelFor(
       t.height,
       [&](long begin, long end) {
         std::vector<float> sums(3 * static_cast<std::size_t>(stride));
         for (long row = begin; row < end; ++row) {
-          std::fill(sums.begin(), sums.end(), 0.f);
-          for (int k = t.row_run_begin[static_cast<std::size_t>(row)];
-               k < t.row_run_begin[static_cast<std::size_t>(row) + 1]; ++k) {
-            const LevelTables::RowRun& run = t.row_runs[static_cast<std::size_t>(k)];
-            const glm::vec3 m = mu[static_cast<std::size_t>(run.srbf)];
-            const float* g = t.row_g.data() + run.entry;
-            float* sr = sums.data() + 4 * run.block;
-            float* sg = sr + stride;
-            float* sb = sg + stride;
-            const V4 mr = {m.x, m.x, m.x, m.x}, mg = {m.y, m.y, m.y, m.y}, mb = {m.z, m.z, m.z, m.z};
-            for (int i = 0; i < 4 * run.blocks; i += 4) {
-              const V4 g4 = Load4(g + i);
-              Store4(sr + i, Load4(sr + i) + mr * g4);
-              Store4(sg + i, Load4(sg + i) + mg * g4);
-              Store4(sb + i, Load4(sb + i) + mb * g4);
-            }
-          }
-          // Back to interleaved RGB, four pixels (12 floats) at a time.
           const std::size_t first = 3 * static_cast<std::size_t>(row) * width;
-          const float* sr = sums.data();
-          const float* sg = sr + stride;
-          const float* sb = sg + stride;
-          const V4 s4 = {sign, sign, sign, sign};
-          int col = 0;
-          for (; col + 4 <= width; col += 4) {
-            const V4 r = Load4(sr + col), g = Load4(sg + col), bl = Load4(sb + col);
-            const V4 rg_lo = __builtin_shuffle(r, g, I4{0, 4, 1, 5});   // r0 g0 r1 g1
-            const V4 rg_hi = __builtin_shuffle(r, g, I4{2, 6, 3, 7});   // r2 g2 r3 g3
-            const V4 a = __builtin_shuffle(rg_lo, bl, I4{0, 1, 4, 2});  // r0 g0 b0 r1
-            const V4 c =
-                __builtin_shuffle(__builtin_shuffle(rg_lo, rg_hi, I4{3, 0, 4, 5}), bl, I4{0, 5, 2, 3});  // g1 b1 r2 g2
-            const V4 d = __builtin_shuffle(rg_hi, bl, I4{6, 2, 3, 7});                                   // b2 r3 g3 b3
-            const std::size_t i = first + 3 * static_cast<std::size_t>(col);
-            Store4(o + i, Load4(b + i) + s4 * a);
-            Store4(o + i + 4, Load4(b + i + 4) + s4 * c);
-            Store4(o + i + 8, Load4(b + i + 8) + s4 * d);
-          }
-          for (; col < width; ++col) {
-            const std::size_t i = first + 3 * static_cast<std::size_t>(col);
-            o[i] = b[i] + sign * sr[col];
-            o[i + 1] = b[i + 1] + sign * sg[col];
-            o[i + 2] = b[i + 2] + sign * sb[col];
-          }
+          RowSums(t, mu, row, stride, sums.data());
+          AddRowSums(sums.data(), stride, width, sign, base.rgb.data() + first, out->rgb.data() + first);
         }
       },
       t.srbf_begin.back() < kSerialEntries ? t.height : 4);
+}
+
+// residue = target − R_{<s}, R_{<s} = the constant plus every coarser level evaluated on this
+// grid (`tables[l]`, `mu[l]`), made row by row in one pass: each row of R is the constant, then
+// each level's row sums added in level order, as whole-grid passes per level add them, without
+// writing R out and reading it back per level and again for the subtraction.
+void ResidueOfCoarserLevels(const std::vector<const LevelTables*>& tables,
+                            const std::vector<std::vector<glm::vec3>>& mu, glm::vec3 constant,
+                            const sphere::EquirectImage& target, sphere::EquirectImage* residue, ThreadPool* pool) {
+  const int width = target.width, stride = (width + 3) / 4 * 4;
+  *residue = sphere::EquirectImage(width, target.height);
+  long entries = 0;
+  for (const LevelTables* t : tables) entries += t->srbf_begin.back();
+  pool->ParallelFor(
+      target.height,
+      [&](long begin, long end) {
+        std::vector<float> sums(3 * static_cast<std::size_t>(stride)), recon(3 * static_cast<std::size_t>(width));
+        for (long row = begin; row < end; ++row) {
+          for (std::size_t i = 0; i < recon.size(); i += 3) {
+            recon[i] = constant.x;
+            recon[i + 1] = constant.y;
+            recon[i + 2] = constant.z;
+          }
+          for (std::size_t l = 0; l < tables.size(); ++l) {
+            RowSums(*tables[l], mu[l], row, stride, sums.data());
+            AddRowSums(sums.data(), stride, width, 1.0f, recon.data(), recon.data());
+          }
+          const std::size_t first = 3 * static_cast<std::size_t>(row) * width;
+          const float* t = target.rgb.data() + first;
+          float* r = residue->rgb.data() + first;
+          for (std::size_t i = 0; i < recon.size(); ++i) r[i] = t[i] - recon[i];
+        }
+      },
+      entries < kSerialEntries ? target.height : 4);
 }
 
 glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
@@ -574,26 +616,25 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     const auto level_start = Clock::now();
     const auto [w, h] = GridOf(s, input.width, input.height);
     const bool same_grid = options_.exact_reconstruction && s > 0 && carried.width == w && carried.height == h;
-    if (s > 0 && !same_grid) {
-      // R_{<s} on this grid: every coarser level evaluated here (their overlap lists on this
-      // grid are built once, like the level's own), or the coarser reconstruction magnified plus
-      // the previous level evaluated here (see exact_reconstruction).
-      if (options_.exact_reconstruction) {
-        recon = sphere::EquirectImage(w, h);
-        for (std::size_t i = 0; i < recon.rgb.size(); i += 3) {
-          recon.rgb[i] = model.constant.x;
-          recon.rgb[i + 1] = model.constant.y;
-          recon.rgb[i + 2] = model.constant.z;
-        }
-        for (std::size_t l = 0; l < all_mu.size(); ++l)
-          Reconstruct(Tables(static_cast<int>(l), w, h), all_mu[l], 1.0f, recon, &recon, pool_.get());
-      } else {
-        recon = sphere::UpsampleBilinear(recon, w, h);
-        Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, recon, &recon, pool_.get());
-      }
+    if (s > 0 && !same_grid && !options_.exact_reconstruction) {
+      // R_{<s} on this grid: the coarser reconstruction magnified plus the previous level
+      // evaluated here (see exact_reconstruction).
+      recon = sphere::UpsampleBilinear(recon, w, h);
+      Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, recon, &recon, pool_.get());
     }
     const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];
-    sphere::EquirectImage residue = same_grid ? std::move(carried) : Subtract(target, recon);
+    sphere::EquirectImage residue;
+    if (same_grid) {
+      residue = std::move(carried);
+    } else if (options_.exact_reconstruction && s > 0) {
+      // R_{<s} on this grid: every coarser level evaluated here (their overlap lists on this
+      // grid are built once, like the level's own).
+      std::vector<const LevelTables*> coarser;
+      for (std::size_t l = 0; l < all_mu.size(); ++l) coarser.push_back(&Tables(static_cast<int>(l), w, h));
+      ResidueOfCoarserLevels(coarser, all_mu, model.constant, target, &residue, pool_.get());
+    } else {
+      residue = Subtract(target, recon);
+    }
     const AbsAndSquareSums sums_before = SphereAbsAndSquareSums(residue);
     const double before = MeanAbsOf(sums_before) / report.mean_radiance;
     const double rms_before = RmsOf(sums_before);
