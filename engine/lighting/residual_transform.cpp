@@ -475,31 +475,46 @@ struct AbsAndSquareSums {
   double abs = 0, square = 0;
 };
 
-AbsAndSquareSums SphereAbsAndSquareSums(const sphere::EquirectImage& image) {
+// One row's Σ|c| and Σc² over its channels, each in four double lanes.
+AbsAndSquareSums RowAbsAndSquareSums(const float* p, int n) {
+  D2 abs_lanes[2] = {}, square_lanes[2] = {};
+  int i = 0;
+  for (; i + 4 <= n; i += 4) {
+    const V4 v = Load4(p + i);
+    const V4 a = reinterpret_cast<V4>(reinterpret_cast<I4>(v) & I4{0x7fffffff, 0x7fffffff, 0x7fffffff, 0x7fffffff});
+    abs_lanes[0] += Low2(a);
+    abs_lanes[1] += High2(a);
+    const D2 lo = Low2(v), hi = High2(v);
+    square_lanes[0] += lo * lo;
+    square_lanes[1] += hi * hi;
+  }
+  AbsAndSquareSums sums;
+  sums.abs = (abs_lanes[0][0] + abs_lanes[0][1]) + (abs_lanes[1][0] + abs_lanes[1][1]);
+  sums.square = (square_lanes[0][0] + square_lanes[0][1]) + (square_lanes[1][0] + square_lanes[1][1]);
+  for (; i < n; ++i) {
+    sums.abs += std::abs(p[i]);
+    sums.square += static_cast<double>(p[i]) * p[i];
+  }
+  return sums;
+}
+
+// The rows on the pool when there is one (the rest of the transform's passes are, and a serial
+// pass leaves the other core idle), added up in row order either way, so the same sums.
+AbsAndSquareSums SphereAbsAndSquareSums(const sphere::EquirectImage& image, ThreadPool* pool = nullptr) {
+  std::vector<AbsAndSquareSums> rows(static_cast<std::size_t>(image.height));
+  const auto body = [&](long begin, long end) {
+    for (long row = begin; row < end; ++row)
+      rows[static_cast<std::size_t>(row)] = RowAbsAndSquareSums(image.at(0, static_cast<int>(row)), image.width * 3);
+  };
+  if (pool && image.pixel_count() * 3 >= static_cast<std::size_t>(kSerialEntries))
+    pool->ParallelFor(image.height, body, 8);
+  else
+    body(0, image.height);
   AbsAndSquareSums total;
-  const int n = image.width * 3;
   for (int row = 0; row < image.height; ++row) {
-    const float* p = image.at(0, row);
-    D2 abs_lanes[2] = {}, square_lanes[2] = {};
-    int i = 0;
-    for (; i + 4 <= n; i += 4) {
-      const V4 v = Load4(p + i);
-      const V4 a = reinterpret_cast<V4>(reinterpret_cast<I4>(v) & I4{0x7fffffff, 0x7fffffff, 0x7fffffff, 0x7fffffff});
-      abs_lanes[0] += Low2(a);
-      abs_lanes[1] += High2(a);
-      const D2 lo = Low2(v), hi = High2(v);
-      square_lanes[0] += lo * lo;
-      square_lanes[1] += hi * hi;
-    }
-    double abs_sum = (abs_lanes[0][0] + abs_lanes[0][1]) + (abs_lanes[1][0] + abs_lanes[1][1]);
-    double square_sum = (square_lanes[0][0] + square_lanes[0][1]) + (square_lanes[1][0] + square_lanes[1][1]);
-    for (; i < n; ++i) {
-      abs_sum += std::abs(p[i]);
-      square_sum += static_cast<double>(p[i]) * p[i];
-    }
     const double da = sphere::EquirectPixelSolidAngle(row, image.width, image.height);
-    total.abs += abs_sum * da;
-    total.square += square_sum * da;
+    total.abs += rows[static_cast<std::size_t>(row)].abs * da;
+    total.square += rows[static_cast<std::size_t>(row)].square * da;
   }
   return total;
 }
@@ -585,7 +600,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
   report.prepare_ms = MsSince(start);
 
   const sphere::EquirectImage& finest = grids.back();
-  report.mean_radiance = MeanAbsRadiance(finest);
+  report.mean_radiance = MeanAbsOf(SphereAbsAndSquareSums(finest, pool_.get()));
   if (!(report.mean_radiance > 0)) {
     report.stop_reason = "the frame is black";
     report.total_ms = MsSince(start);
@@ -635,7 +650,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     } else {
       residue = Subtract(target, recon);
     }
-    const AbsAndSquareSums sums_before = SphereAbsAndSquareSums(residue);
+    const AbsAndSquareSums sums_before = SphereAbsAndSquareSums(residue, pool_.get());
     const double before = MeanAbsOf(sums_before) / report.mean_radiance;
     const double rms_before = RmsOf(sums_before);
     if (before < options_.stop_threshold && s > 0) {
@@ -667,7 +682,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     if (dropped_any) {
       Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     }
-    const AbsAndSquareSums sums_after = SphereAbsAndSquareSums(remaining);
+    const AbsAndSquareSums sums_after = SphereAbsAndSquareSums(remaining, pool_.get());
     const double after = MeanAbsOf(sums_after) / report.mean_radiance;
     // The rejection rule looks at the RMS: the mean |residue| may rise when a sun's energy is
     // spread (it is the stop rule's measure, the seed's "average value of the residue").
