@@ -3,8 +3,10 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <glm/geometric.hpp>
 
 #include "engine/core/error.h"
@@ -23,11 +25,9 @@ double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::
 // -O2 vectorizes; std::any_of branched on every value of the frame. With the serial small passes
 // below, the transform to 2 levels at 1024 wide went from 1.47 to 0.86 ms (`odvr bench light`,
 // park and sunset; most of it was spent before the first level).
-bool HasBadPixels(const std::vector<float>& values) {
+bool HasBadPixels(const float* v, std::size_t n) {
   constexpr int kLanes = 16;
   float lowest[kLanes] = {}, probe[kLanes] = {};
-  const float* v = values.data();
-  const std::size_t n = values.size();
   std::size_t i = 0;
   for (; i + kLanes <= n; i += kLanes)
     for (int j = 0; j < kLanes; ++j) {
@@ -40,12 +40,56 @@ bool HasBadPixels(const std::vector<float>& values) {
   return bad;
 }
 
+// The finest working grid as `factor`×`factor` box means of a clean input (DownsampleBox bit
+// for bit), in row bands on the pool, each input row checked for bad pixels while it is in
+// cache: at 2048 wide the frame is 25 MB, and the check and the box each read all of it on
+// one thread. False when a pixel is bad (`out` is then not the grid).
+bool DownsampleBoxIfClean(const sphere::EquirectImage& input, int factor, sphere::EquirectImage* out,
+                          ThreadPool* pool) {
+  *out = sphere::EquirectImage(input.width / factor, input.height / factor);
+  std::atomic<bool> bad{false};
+  pool->ParallelFor(
+      out->height,
+      [&](long begin, long end) {
+        std::vector<float> column(3 * static_cast<std::size_t>(input.width));
+        bool band_bad = false;
+        for (long row = begin; row < end; ++row) {
+          std::fill(column.begin(), column.end(), 0.f);
+          for (int dy = 0; dy < factor; ++dy) {
+            const float* in = input.at(0, static_cast<int>(row) * factor + dy);
+            band_bad = HasBadPixels(in, 3 * static_cast<std::size_t>(input.width)) || band_bad;
+            sphere::AddBoxRow(in, input.width, column.data());
+          }
+          sphere::FoldBoxColumns(column.data(), input.width, factor, out->at(0, static_cast<int>(row)));
+        }
+        if (band_bad) bad = true;
+      },
+      8);
+  return !bad;
+}
+
 // Below this many overlap entries a pass runs on the calling thread: the coarse levels' grids
 // (64 wide) hold a few ten thousand entries, tens of microseconds of work, and waking the pool's
 // threads for each of a level's passes is not free (see HasBadPixels for the figure).
 constexpr long kSerialEntries = 1L << 16;
 
-// μ_c = Σ r G dA / Σ G dA over R(c), optionally divided by S̄_c; one SRBF per index.
+// Four floats in registers (GCC's vector extension, as in the peak detector).
+using V4 = float __attribute__((vector_size(16)));
+using I4 = int __attribute__((vector_size(16)));
+V4 Load4(const float* p) {
+  V4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+void Store4(float* p, V4 v) { std::memcpy(p, &v, sizeof v); }
+using D2 = double __attribute__((vector_size(16)));
+D2 Low2(V4 v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1), D2); }
+D2 High2(V4 v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 2, 3), D2); }
+
+// μ_c = Σ r G dA / Σ G dA over R(c), optionally divided by S̄_c; one SRBF per index. Walks the
+// SRBF's runs (contiguous pixels and weights) four pixels at a time: the products G·dA·r in
+// float as before, summed in double in four lanes per channel instead of one chain (the
+// entry-by-entry walk was latency-bound on it), which moves μ by at most an ulp of float.
 void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normalization normalization,
              std::vector<glm::vec3>* mu, ThreadPool* pool) {
   const std::vector<float>& weights =
@@ -58,15 +102,36 @@ void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normali
       n,
       [&](long begin, long end) {
         for (long c = begin; c < end; ++c) {
+          // Lanes of the 12 floats of four RGB pixels: (r g)(b r)(g b)(r g)(b r)(g b).
+          D2 lanes[6] = {};
           double acc[3] = {0, 0, 0};
-          for (int e = t.srbf_begin[static_cast<std::size_t>(c)]; e < t.srbf_begin[static_cast<std::size_t>(c) + 1];
-               ++e) {
-            const float w = weights[static_cast<std::size_t>(e)];
-            const float* p = r + 3 * static_cast<std::size_t>(t.srbf_pixel[static_cast<std::size_t>(e)]);
-            acc[0] += w * p[0];
-            acc[1] += w * p[1];
-            acc[2] += w * p[2];
+          for (int k = t.srbf_run_begin[static_cast<std::size_t>(c)];
+               k < t.srbf_run_begin[static_cast<std::size_t>(c) + 1]; ++k) {
+            const LevelTables::SrbfRun& run = t.srbf_runs[static_cast<std::size_t>(k)];
+            const float* w = weights.data() + run.entry;
+            const float* p = r + 3 * static_cast<std::size_t>(run.pixel);
+            int i = 0;
+            for (; i + 4 <= run.length; i += 4) {
+              const V4 w4 = Load4(w + i);
+              const V4 a = Load4(p + 3 * i) * __builtin_shufflevector(w4, w4, 0, 0, 0, 1);
+              const V4 b = Load4(p + 3 * i + 4) * __builtin_shufflevector(w4, w4, 1, 1, 2, 2);
+              const V4 d = Load4(p + 3 * i + 8) * __builtin_shufflevector(w4, w4, 2, 3, 3, 3);
+              lanes[0] += Low2(a);
+              lanes[1] += High2(a);
+              lanes[2] += Low2(b);
+              lanes[3] += High2(b);
+              lanes[4] += Low2(d);
+              lanes[5] += High2(d);
+            }
+            for (; i < run.length; ++i) {
+              acc[0] += w[i] * p[3 * i];
+              acc[1] += w[i] * p[3 * i + 1];
+              acc[2] += w[i] * p[3 * i + 2];
+            }
           }
+          acc[0] += (lanes[0][0] + lanes[1][1]) + (lanes[3][0] + lanes[4][1]);
+          acc[1] += (lanes[0][1] + lanes[2][0]) + (lanes[3][1] + lanes[5][0]);
+          acc[2] += (lanes[1][0] + lanes[2][1]) + (lanes[4][0] + lanes[5][1]);
           double scale = t.inv_weight_sum[static_cast<std::size_t>(c)];
           if (normalize) scale /= t.local_sum[static_cast<std::size_t>(c)];
           (*mu)[static_cast<std::size_t>(c)] =
@@ -77,30 +142,108 @@ void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normali
       t.srbf_begin.back() < kSerialEntries ? n : 4);
 }
 
-// out(p) = sign · Σ_c μ_c G_c(p) added to `out` (sign −1 subtracts: the residue update).
-void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float sign, sphere::EquirectImage* out,
-                 ThreadPool* pool) {
-  float* o = out->rgb.data();
+// One row of Σ_c μ_c G_c into per-channel sums (`stride` floats apart, zeroed here): each of
+// the row's runs adds μ_c·G four pixels at a time (the by-pixel walk gathered μ and chained
+// every add on the last), SRBFs in the by-pixel lists' order, so every pixel's sum is the one
+// that walk made (the padding adds +0).
+void RowSums(const LevelTables& t, const std::vector<glm::vec3>& mu, long row, int stride, float* sums) {
+  std::fill(sums, sums + 3 * static_cast<std::size_t>(stride), 0.f);
+  for (int k = t.row_run_begin[static_cast<std::size_t>(row)]; k < t.row_run_begin[static_cast<std::size_t>(row) + 1];
+       ++k) {
+    const LevelTables::RowRun& run = t.row_runs[static_cast<std::size_t>(k)];
+    const glm::vec3 m = mu[static_cast<std::size_t>(run.srbf)];
+    const float* g = t.row_g.data() + run.entry;
+    float* sr = sums + 4 * run.block;
+    float* sg = sr + stride;
+    float* sb = sg + stride;
+    const V4 mr = {m.x, m.x, m.x, m.x}, mg = {m.y, m.y, m.y, m.y}, mb = {m.z, m.z, m.z, m.z};
+    for (int i = 0; i < 4 * run.blocks; i += 4) {
+      const V4 g4 = Load4(g + i);
+      Store4(sr + i, Load4(sr + i) + mr * g4);
+      Store4(sg + i, Load4(sg + i) + mg * g4);
+      Store4(sb + i, Load4(sb + i) + mb * g4);
+    }
+  }
+}
+
+// out = base + sign · sums for one row of `width` RGB pixels, back to interleaved RGB four
+// pixels (12 floats) at a time; `out` may be `base`.
+void AddRowSums(const float* sums, int stride, int width, float sign, const float* b, float* o) {
+  const float* sr = sums;
+  const float* sg = sr + stride;
+  const float* sb = sg + stride;
+  const V4 s4 = {sign, sign, sign, sign};
+  int col = 0;
+  for (; col + 4 <= width; col += 4) {
+    const V4 r = Load4(sr + col), g = Load4(sg + col), bl = Load4(sb + col);
+    const V4 rg_lo = __builtin_shuffle(r, g, I4{0, 4, 1, 5});                                             // r0 g0 r1 g1
+    const V4 rg_hi = __builtin_shuffle(r, g, I4{2, 6, 3, 7});                                             // r2 g2 r3 g3
+    const V4 a = __builtin_shuffle(rg_lo, bl, I4{0, 1, 4, 2});                                            // r0 g0 b0 r1
+    const V4 c = __builtin_shuffle(__builtin_shuffle(rg_lo, rg_hi, I4{3, 0, 4, 5}), bl, I4{0, 5, 2, 3});  // g1 b1 r2 g2
+    const V4 d = __builtin_shuffle(rg_hi, bl, I4{6, 2, 3, 7});                                            // b2 r3 g3 b3
+    const std::size_t i = 3 * static_cast<std::size_t>(col);
+    Store4(o + i, Load4(b + i) + s4 * a);
+    Store4(o + i + 4, Load4(b + i + 4) + s4 * c);
+    Store4(o + i + 8, Load4(b + i + 8) + s4 * d);
+  }
+  for (; col < width; ++col) {
+    const std::size_t i = 3 * static_cast<std::size_t>(col);
+    o[i] = b[i] + sign * sr[col];
+    o[i + 1] = b[i + 1] + sign * sg[col];
+    o[i + 2] = b[i + 2] + sign * sb[col];
+  }
+}
+
+// out(p) = base(p) + sign · Σ_c μ_c G_c(p) (sign −1 subtracts: the residue update; `out` may be
+// `base`), row by row.
+void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float sign, const sphere::EquirectImage& base,
+                 sphere::EquirectImage* out, ThreadPool* pool) {
+  const int width = t.width, stride = (width + 3) / 4 * 4;
   pool->ParallelFor(
-      static_cast<long>(out->pixel_count()),
+      t.height,
       [&](long begin, long end) {
-        for (long p = begin; p < end; ++p) {
-          float acc[3] = {0, 0, 0};
-          for (int e = t.pixel_begin[static_cast<std::size_t>(p)]; e < t.pixel_begin[static_cast<std::size_t>(p) + 1];
-               ++e) {
-            const glm::vec3& m = mu[static_cast<std::size_t>(t.pixel_srbf[static_cast<std::size_t>(e)])];
-            const float g = t.pixel_g[static_cast<std::size_t>(e)];
-            acc[0] += m.x * g;
-            acc[1] += m.y * g;
-            acc[2] += m.z * g;
-          }
-          float* q = o + 3 * p;
-          q[0] += sign * acc[0];
-          q[1] += sign * acc[1];
-          q[2] += sign * acc[2];
+        std::vector<float> sums(3 * static_cast<std::size_t>(stride));
+        for (long row = begin; row < end; ++row) {
+          const std::size_t first = 3 * static_cast<std::size_t>(row) * width;
+          RowSums(t, mu, row, stride, sums.data());
+          AddRowSums(sums.data(), stride, width, sign, base.rgb.data() + first, out->rgb.data() + first);
         }
       },
-      t.pixel_begin.back() < kSerialEntries ? static_cast<long>(out->pixel_count()) : 64);
+      t.srbf_begin.back() < kSerialEntries ? t.height : 4);
+}
+
+// residue = target − R_{<s}, R_{<s} = the constant plus every coarser level evaluated on this
+// grid (`tables[l]`, `mu[l]`), made row by row in one pass: each row of R is the constant, then
+// each level's row sums added in level order, as whole-grid passes per level add them, without
+// writing R out and reading it back per level and again for the subtraction.
+void ResidueOfCoarserLevels(const std::vector<const LevelTables*>& tables,
+                            const std::vector<std::vector<glm::vec3>>& mu, glm::vec3 constant,
+                            const sphere::EquirectImage& target, sphere::EquirectImage* residue, ThreadPool* pool) {
+  const int width = target.width, stride = (width + 3) / 4 * 4;
+  *residue = sphere::EquirectImage(width, target.height);
+  long entries = 0;
+  for (const LevelTables* t : tables) entries += t->srbf_begin.back();
+  pool->ParallelFor(
+      target.height,
+      [&](long begin, long end) {
+        std::vector<float> sums(3 * static_cast<std::size_t>(stride)), recon(3 * static_cast<std::size_t>(width));
+        for (long row = begin; row < end; ++row) {
+          for (std::size_t i = 0; i < recon.size(); i += 3) {
+            recon[i] = constant.x;
+            recon[i + 1] = constant.y;
+            recon[i + 2] = constant.z;
+          }
+          for (std::size_t l = 0; l < tables.size(); ++l) {
+            RowSums(*tables[l], mu[l], row, stride, sums.data());
+            AddRowSums(sums.data(), stride, width, 1.0f, recon.data(), recon.data());
+          }
+          const std::size_t first = 3 * static_cast<std::size_t>(row) * width;
+          const float* t = target.rgb.data() + first;
+          float* r = residue->rgb.data() + first;
+          for (std::size_t i = 0; i < recon.size(); ++i) r[i] = t[i] - recon[i];
+        }
+      },
+      entries < kSerialEntries ? target.height : 4);
 }
 
 glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
@@ -151,7 +294,9 @@ double RegionCutoffOf(const ResidualTransformOptions& options, int level) {
 std::size_t LevelTables::bytes() const {
   return sizeof(int) * (srbf_begin.size() + srbf_pixel.size() + pixel_begin.size() + pixel_srbf.size()) +
          sizeof(float) * (srbf_weight.size() + srbf_partition_weight.size() + inv_weight_sum.size() + local_sum.size() +
-                          pixel_g.size() + pixel_solid_angle.size());
+                          pixel_g.size() + pixel_solid_angle.size() + row_g.size()) +
+         sizeof(int) * (srbf_run_begin.size() + row_run_begin.size()) + sizeof(SrbfRun) * srbf_runs.size() +
+         sizeof(RowRun) * row_runs.size();
 }
 
 LevelTables BuildLevelTables(int level, int width, int height, double region_cutoff, ThreadPool* pool) {
@@ -263,30 +408,125 @@ LevelTables BuildLevelTables(int level, int width, int height, double region_cut
     }
     if (den > 0) t.local_sum[static_cast<std::size_t>(c)] = static_cast<float>(num / den);
   }
+  // Runs (see LevelTables): by SRBF, a new one wherever the next entry is not the next pixel;
+  // by row, those cut at the rows' ends and bucketed per row, SRBFs ascending.
+  t.srbf_run_begin.assign(static_cast<std::size_t>(n) + 1, 0);
+  for (int c = 0; c < n; ++c) {
+    const std::size_t first_run = t.srbf_runs.size();
+    t.srbf_run_begin[static_cast<std::size_t>(c)] = static_cast<int>(first_run);
+    int e = t.srbf_begin[static_cast<std::size_t>(c)];
+    for (const auto& [pixel, g] : caps[static_cast<std::size_t>(c)]) {
+      if (t.srbf_runs.size() > first_run && t.srbf_runs.back().pixel + t.srbf_runs.back().length == pixel)
+        ++t.srbf_runs.back().length;
+      else
+        t.srbf_runs.push_back({pixel, 1, e});
+      ++e;
+    }
+  }
+  t.srbf_run_begin.back() = static_cast<int>(t.srbf_runs.size());
+  struct Piece {
+    int row, srbf, col, length, entry;  // entry: by-SRBF entry of the first column
+  };
+  std::vector<Piece> pieces;
+  std::vector<int> per_row(static_cast<std::size_t>(height) + 1, 0);
+  for (int c = 0; c < n; ++c)
+    for (int r = t.srbf_run_begin[static_cast<std::size_t>(c)]; r < t.srbf_run_begin[static_cast<std::size_t>(c) + 1];
+         ++r) {
+      const LevelTables::SrbfRun& run = t.srbf_runs[static_cast<std::size_t>(r)];
+      for (int done = 0; done < run.length;) {
+        const int pixel = run.pixel + done, row = pixel / width, col = pixel % width;
+        const int length = std::min(run.length - done, width - col);
+        pieces.push_back({row, c, col, length, run.entry + done});
+        ++per_row[static_cast<std::size_t>(row) + 1];
+        done += length;
+      }
+    }
+  std::vector<float> srbf_g(entries);
+  for (int c = 0; c < n; ++c) {
+    std::size_t e = static_cast<std::size_t>(t.srbf_begin[static_cast<std::size_t>(c)]);
+    for (const auto& cap : caps[static_cast<std::size_t>(c)]) srbf_g[e++] = cap.second;
+  }
+  t.row_run_begin.assign(per_row.size(), 0);
+  for (std::size_t r = 1; r < per_row.size(); ++r) t.row_run_begin[r] = t.row_run_begin[r - 1] + per_row[r];
+  std::vector<const Piece*> ordered(pieces.size());
+  std::vector<int> row_fill(t.row_run_begin.begin(), t.row_run_begin.end() - 1);
+  for (const Piece& piece : pieces)
+    ordered[static_cast<std::size_t>(row_fill[static_cast<std::size_t>(piece.row)]++)] = &piece;
+  t.row_runs.resize(pieces.size());
+  for (std::size_t k = 0; k < ordered.size(); ++k) {
+    const Piece& piece = *ordered[k];
+    const int block = piece.col / 4, blocks = (piece.col + piece.length + 3) / 4 - block;
+    const std::size_t entry = t.row_g.size();
+    t.row_runs[k] = {piece.srbf, block, blocks, static_cast<int>(entry)};
+    t.row_g.resize(entry + 4 * static_cast<std::size_t>(blocks), 0.f);
+    std::copy_n(srbf_g.begin() + piece.entry, piece.length,
+                t.row_g.begin() + static_cast<long>(entry) + piece.col - 4 * block);
+  }
   return t;
 }
 
-double RmsRadiance(const sphere::EquirectImage& image) {
-  double sum = 0;
-  for (int row = 0; row < image.height; ++row) {
-    double row_sum = 0;
-    const float* p = image.at(0, row);
-    for (int i = 0; i < image.width * 3; ++i) row_sum += static_cast<double>(p[i]) * p[i];
-    sum += row_sum * sphere::EquirectPixelSolidAngle(row, image.width, image.height);
+namespace {
+
+// Σ (|r|+|g|+|b|) dA and Σ (r²+g²+b²) dA in one read of the image, each row summed in four
+// double lanes per measure: one chain per row was latency-bound, and the transform takes both
+// measures of two residues per level (at 512×256, about 2 ms of the 5-level transform). The
+// lanes change only the double summation order.
+struct AbsAndSquareSums {
+  double abs = 0, square = 0;
+};
+
+// One row's Σ|c| and Σc² over its channels, each in four double lanes.
+AbsAndSquareSums RowAbsAndSquareSums(const float* p, int n) {
+  D2 abs_lanes[2] = {}, square_lanes[2] = {};
+  int i = 0;
+  for (; i + 4 <= n; i += 4) {
+    const V4 v = Load4(p + i);
+    const V4 a = reinterpret_cast<V4>(reinterpret_cast<I4>(v) & I4{0x7fffffff, 0x7fffffff, 0x7fffffff, 0x7fffffff});
+    abs_lanes[0] += Low2(a);
+    abs_lanes[1] += High2(a);
+    const D2 lo = Low2(v), hi = High2(v);
+    square_lanes[0] += lo * lo;
+    square_lanes[1] += hi * hi;
   }
-  return std::sqrt(sum / 3.0 / (4 * sphere::kPi));
+  AbsAndSquareSums sums;
+  sums.abs = (abs_lanes[0][0] + abs_lanes[0][1]) + (abs_lanes[1][0] + abs_lanes[1][1]);
+  sums.square = (square_lanes[0][0] + square_lanes[0][1]) + (square_lanes[1][0] + square_lanes[1][1]);
+  for (; i < n; ++i) {
+    sums.abs += std::abs(p[i]);
+    sums.square += static_cast<double>(p[i]) * p[i];
+  }
+  return sums;
 }
 
-double MeanAbsRadiance(const sphere::EquirectImage& image) {
-  double sum = 0;
+// The rows on the pool when there is one (the rest of the transform's passes are, and a serial
+// pass leaves the other core idle), added up in row order either way, so the same sums.
+AbsAndSquareSums SphereAbsAndSquareSums(const sphere::EquirectImage& image, ThreadPool* pool = nullptr) {
+  std::vector<AbsAndSquareSums> rows(static_cast<std::size_t>(image.height));
+  const auto body = [&](long begin, long end) {
+    for (long row = begin; row < end; ++row)
+      rows[static_cast<std::size_t>(row)] = RowAbsAndSquareSums(image.at(0, static_cast<int>(row)), image.width * 3);
+  };
+  if (pool && image.pixel_count() * 3 >= static_cast<std::size_t>(kSerialEntries))
+    pool->ParallelFor(image.height, body, 8);
+  else
+    body(0, image.height);
+  AbsAndSquareSums total;
   for (int row = 0; row < image.height; ++row) {
-    double row_sum = 0;
-    const float* p = image.at(0, row);
-    for (int i = 0; i < image.width * 3; ++i) row_sum += std::abs(p[i]);
-    sum += row_sum * sphere::EquirectPixelSolidAngle(row, image.width, image.height);
+    const double da = sphere::EquirectPixelSolidAngle(row, image.width, image.height);
+    total.abs += rows[static_cast<std::size_t>(row)].abs * da;
+    total.square += rows[static_cast<std::size_t>(row)].square * da;
   }
-  return sum / 3.0 / (4 * sphere::kPi);
+  return total;
 }
+
+double MeanAbsOf(const AbsAndSquareSums& s) { return s.abs / 3.0 / (4 * sphere::kPi); }
+double RmsOf(const AbsAndSquareSums& s) { return std::sqrt(s.square / 3.0 / (4 * sphere::kPi)); }
+
+}  // namespace
+
+double RmsRadiance(const sphere::EquirectImage& image) { return RmsOf(SphereAbsAndSquareSums(image)); }
+
+double MeanAbsRadiance(const sphere::EquirectImage& image) { return MeanAbsOf(SphereAbsAndSquareSums(image)); }
 
 ResidualTransform::ResidualTransform(ResidualTransformOptions options)
     : options_(options), pool_(std::make_unique<ThreadPool>(options.threads)) {
@@ -337,26 +577,30 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
   // Working grids, finest first, each resampled from the next finer one (area-preserving).
   const int levels = options_.levels;
   std::vector<sphere::EquirectImage> grids(static_cast<std::size_t>(levels));
-  {
+  const auto [finest_w, finest_h] = GridOf(levels - 1, input.width, input.height);
+  const int box = input.width / finest_w;
+  const bool boxed = box > 1 && input.width == box * finest_w && input.height == box * finest_h &&
+                     DownsampleBoxIfClean(input, box, &grids.back(), pool_.get());
+  if (!boxed) {
     sphere::EquirectImage clean;
     const sphere::EquirectImage* source = &input;
-    const bool dirty = HasBadPixels(input.rgb);
+    const bool dirty = HasBadPixels(input.rgb.data(), input.rgb.size());
     if (dirty) {
       clean = input;
       const auto [bad, negative] = image::SanitizePixels(&clean);
       spdlog::warn("lighting input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
       source = &clean;
     }
-    for (int s = levels - 1; s >= 0; --s) {
-      const auto [w, h] = GridOf(s, input.width, input.height);
-      const sphere::EquirectImage& finer = s == levels - 1 ? *source : grids[static_cast<std::size_t>(s) + 1];
-      grids[static_cast<std::size_t>(s)] = sphere::ResampleArea(finer, w, h);
-    }
+    grids.back() = sphere::ResampleArea(*source, finest_w, finest_h);
+  }
+  for (int s = levels - 2; s >= 0; --s) {
+    const auto [w, h] = GridOf(s, input.width, input.height);
+    grids[static_cast<std::size_t>(s)] = sphere::ResampleArea(grids[static_cast<std::size_t>(s) + 1], w, h);
   }
   report.prepare_ms = MsSince(start);
 
   const sphere::EquirectImage& finest = grids.back();
-  report.mean_radiance = MeanAbsRadiance(finest);
+  report.mean_radiance = MeanAbsOf(SphereAbsAndSquareSums(finest, pool_.get()));
   if (!(report.mean_radiance > 0)) {
     report.stop_reason = "the frame is black";
     report.total_ms = MsSince(start);
@@ -387,28 +631,28 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     const auto level_start = Clock::now();
     const auto [w, h] = GridOf(s, input.width, input.height);
     const bool same_grid = options_.exact_reconstruction && s > 0 && carried.width == w && carried.height == h;
-    if (s > 0 && !same_grid) {
-      // R_{<s} on this grid: every coarser level evaluated here (their overlap lists on this
-      // grid are built once, like the level's own), or the coarser reconstruction magnified plus
-      // the previous level evaluated here (see exact_reconstruction).
-      if (options_.exact_reconstruction) {
-        recon = sphere::EquirectImage(w, h);
-        for (std::size_t i = 0; i < recon.rgb.size(); i += 3) {
-          recon.rgb[i] = model.constant.x;
-          recon.rgb[i + 1] = model.constant.y;
-          recon.rgb[i + 2] = model.constant.z;
-        }
-        for (std::size_t l = 0; l < all_mu.size(); ++l)
-          Reconstruct(Tables(static_cast<int>(l), w, h), all_mu[l], 1.0f, &recon, pool_.get());
-      } else {
-        recon = sphere::UpsampleBilinear(recon, w, h);
-        Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, &recon, pool_.get());
-      }
+    if (s > 0 && !same_grid && !options_.exact_reconstruction) {
+      // R_{<s} on this grid: the coarser reconstruction magnified plus the previous level
+      // evaluated here (see exact_reconstruction).
+      recon = sphere::UpsampleBilinear(recon, w, h);
+      Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, recon, &recon, pool_.get());
     }
     const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];
-    sphere::EquirectImage residue = same_grid ? std::move(carried) : Subtract(target, recon);
-    const double before = MeanAbsRadiance(residue) / report.mean_radiance;
-    const double rms_before = RmsRadiance(residue);
+    sphere::EquirectImage residue;
+    if (same_grid) {
+      residue = std::move(carried);
+    } else if (options_.exact_reconstruction && s > 0) {
+      // R_{<s} on this grid: every coarser level evaluated here (their overlap lists on this
+      // grid are built once, like the level's own).
+      std::vector<const LevelTables*> coarser;
+      for (std::size_t l = 0; l < all_mu.size(); ++l) coarser.push_back(&Tables(static_cast<int>(l), w, h));
+      ResidueOfCoarserLevels(coarser, all_mu, model.constant, target, &residue, pool_.get());
+    } else {
+      residue = Subtract(target, recon);
+    }
+    const AbsAndSquareSums sums_before = SphereAbsAndSquareSums(residue, pool_.get());
+    const double before = MeanAbsOf(sums_before) / report.mean_radiance;
+    const double rms_before = RmsOf(sums_before);
     if (before < options_.stop_threshold && s > 0) {
       report.stop_reason = "residue below threshold before level " + std::to_string(s);
       break;
@@ -417,13 +661,12 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     const LevelTables& t = Tables(s, w, h);
     std::vector<glm::vec3> mu, delta;
     Project(t, residue, options_.normalization, &mu, pool_.get());
-    sphere::EquirectImage remaining = residue;
-    Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+    sphere::EquirectImage remaining(w, h);
+    Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
       Project(t, remaining, options_.normalization, &delta, pool_.get());
       for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += delta[c];
-      remaining = residue;
-      Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+      Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     }
     // Model only what the frame needs: drop negligible SRBFs.
     int kept = 0;
@@ -437,13 +680,13 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
       }
     }
     if (dropped_any) {
-      remaining = residue;
-      Reconstruct(t, mu, -1.0f, &remaining, pool_.get());
+      Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     }
-    const double after = MeanAbsRadiance(remaining) / report.mean_radiance;
+    const AbsAndSquareSums sums_after = SphereAbsAndSquareSums(remaining, pool_.get());
+    const double after = MeanAbsOf(sums_after) / report.mean_radiance;
     // The rejection rule looks at the RMS: the mean |residue| may rise when a sun's energy is
     // spread (it is the stop rule's measure, the seed's "average value of the residue").
-    const double rms_after = RmsRadiance(remaining);
+    const double rms_after = RmsOf(sums_after);
     LevelReport lr;
     lr.level = s;
     lr.srbfs_total = t.level == s ? static_cast<int>(mu.size()) : 0;

@@ -111,6 +111,26 @@ struct LevelTables {
   std::vector<int> pixel_begin, pixel_srbf;
   std::vector<float> pixel_g;
   std::vector<float> pixel_solid_angle;  // per row
+  // The same lists as runs of consecutive pixels: a cap covers an interval of each row, so the
+  // CPU's passes can read pixels and weights contiguously instead of gathering one entry at a
+  // time, in the same order per SRBF and per pixel as the lists above (the same sums).
+  // By SRBF: runs of pixel indices [pixel, pixel + length), weights at srbf entries
+  // [entry, entry + length).
+  struct SrbfRun {
+    int pixel, length, entry;
+  };
+  std::vector<int> srbf_run_begin;
+  std::vector<SrbfRun> srbf_runs;
+  // By row: each row's runs [row_run_begin[row], row_run_begin[row + 1]), SRBFs ascending (the
+  // by-pixel lists' order), each covering the four-column blocks [block, block + blocks) with
+  // G at row_g[entry...], zero on the block's columns outside the cap: whole aligned blocks
+  // let the adds run four pixels at a time without a store half-overlapping the next load.
+  struct RowRun {
+    int srbf, block, blocks, entry;
+  };
+  std::vector<int> row_run_begin;
+  std::vector<RowRun> row_runs;
+  std::vector<float> row_g;
   std::size_t bytes() const;
 };
 

@@ -206,6 +206,29 @@ TEST(ResidualTransform, OneBadValueAnywhereIsTreatedAsZero) {
     }
 }
 
+// A frame that is a whole multiple of the finest grid is box-averaged in row bands on the pool,
+// its rows checked for bad values as they are read: one in the first or last row of a band, or
+// the frame's very last value, is still found and treated as 0.
+TEST(ResidualTransform, OneBadValueIsFoundWhileTheFrameIsBoxAveraged) {
+  const auto clean = SkyMap(512, 256);  // 2 levels: a 64-wide finest grid, 8x8 boxes
+  const std::size_t n = clean.rgb.size(), row = 3 * 512;
+  ResidualTransformOptions options;
+  options.levels = 2;
+  options.threads = 2;
+  ResidualTransform t(options);
+  for (const std::size_t index : {std::size_t{5}, 64 * row - 1, 64 * row + 700, 200 * row + 9, n - 1})
+    for (const float bad : {std::nanf(""), -INFINITY, -2.f}) {
+      auto dirty = clean;
+      dirty.rgb[index] = bad;
+      auto zeroed = clean;
+      zeroed.rgb[index] = 0.f;
+      const auto a = t.Run(dirty).ToSgs(), b = t.Run(zeroed).ToSgs();
+      ASSERT_EQ(a.size(), b.size()) << index << " " << bad;
+      for (std::size_t k = 0; k < a.size(); ++k)
+        ASSERT_EQ(a[k].amplitude, b[k].amplitude) << index << " " << bad << " sg " << k;
+    }
+}
+
 TEST(ResidualTransform, TinyAndNonEquirectInputsAreClearErrors) {
   ResidualTransform t;
   EXPECT_THROW(t.Run(sphere::EquirectImage(1, 1, 1.f)), Error);
