@@ -5,10 +5,10 @@
 #include <cfloat>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <glm/geometric.hpp>
 
 #include "engine/core/error.h"
+#include "engine/core/float4.h"
 #include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 
@@ -58,18 +58,14 @@ struct FrameScan {
   std::vector<float> block_max;
 };
 
-// Four floats in registers (GCC's vector extension), and three of them: four RGB pixels.
-using V4 = float __attribute__((vector_size(16)));
-V4 Load4(const float* p) {
-  V4 v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
+// Three four-float vectors: four RGB pixels.
+using simd::Load4;
+using simd::V4;
 
 void Store12(float* out, V4 a, V4 b, V4 c) {
-  std::memcpy(out, &a, sizeof a);
-  std::memcpy(out + 4, &b, sizeof b);
-  std::memcpy(out + 8, &c, sizeof c);
+  simd::Store4(out, a);
+  simd::Store4(out + 4, b);
+  simd::Store4(out + 8, c);
 }
 
 void Load12(const float* in, V4* a, V4* b, V4* c) {

@@ -6,10 +6,10 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <glm/geometric.hpp>
 
 #include "engine/core/error.h"
+#include "engine/core/float4.h"
 #include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 #include "engine/sphere/healpix.h"
@@ -73,15 +73,10 @@ bool DownsampleBoxIfClean(const sphere::EquirectImage& input, int factor, sphere
 // threads for each of a level's passes is not free (see HasBadPixels for the figure).
 constexpr long kSerialEntries = 1L << 16;
 
-// Four floats in registers (GCC's vector extension, as in the peak detector).
-using V4 = float __attribute__((vector_size(16)));
+using simd::Load4;
+using simd::Store4;
+using simd::V4;
 using I4 = int __attribute__((vector_size(16)));
-V4 Load4(const float* p) {
-  V4 v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-void Store4(float* p, V4 v) { std::memcpy(p, &v, sizeof v); }
 using D2 = double __attribute__((vector_size(16)));
 D2 Low2(V4 v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1), D2); }
 D2 High2(V4 v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 2, 3), D2); }

@@ -1,10 +1,10 @@
 #include "engine/sphere/equirect_image.h"
 
 #include <algorithm>
-#include <cstring>
 #include <string>
 
 #include "engine/core/error.h"
+#include "engine/core/float4.h"
 
 namespace odvr::sphere {
 
@@ -23,18 +23,12 @@ void FoldBoxColumns(const float* column, int width, int factor, float* out_row) 
   // order (from 0, dx ascending), lane 3 (the next pixel's red) is overwritten by the next
   // store. Scalar, the fold of a 2048-wide frame to 512 was 3 % of the 5-level transform. The
   // last pixel stays scalar: its loads and store would reach one float past the row.
-  using V4 = float __attribute__((vector_size(16)));
   const int n = width / factor;
-  const V4 scale4 = {scale, scale, scale, scale};
+  const simd::V4 scale4 = {scale, scale, scale, scale};
   for (int col = 0; col + 1 < n; ++col) {
-    V4 acc = {0.f, 0.f, 0.f, 0.f};
-    for (int dx = 0; dx < factor; ++dx) {
-      V4 v;
-      std::memcpy(&v, column + 3 * (col * factor + dx), sizeof v);
-      acc += v;
-    }
-    acc *= scale4;
-    std::memcpy(out_row + 3 * col, &acc, sizeof acc);
+    simd::V4 acc = {0.f, 0.f, 0.f, 0.f};
+    for (int dx = 0; dx < factor; ++dx) acc += simd::Load4(column + 3 * (col * factor + dx));
+    simd::Store4(out_row + 3 * col, acc * scale4);
   }
   for (int col = std::max(0, n - 1); col < n; ++col)
     for (int k = 0; k < 3; ++k) {
