@@ -60,6 +60,7 @@ uniform vec2 uGroundCenter;  // xz
 uniform float uGroundHalfSize;
 uniform int uGroundShadowsBounce;  // RenderOptions::ground_shadows_bounce
 uniform float uGroundLitHalfAngle;
+uniform vec3 uGroundRadiance;  // detail::PreparedLighting::ground_radiance
 
 uniform int uGroundPeakCount;
 uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
@@ -172,9 +173,11 @@ float capHalfAngleHolding(float lambda, float fraction) {
 struct ConeSet {
   vec3 axis[kMaxCones];
   float visibility[kMaxCones];
+  float ground_lit[kMaxCones];  // groundLit along each cone: 1 but where it meets the shadowed ground
   int count;
   float lambda;  // of every cone's SG (eq. 4.12)
   bool all_visible;
+  bool ground_shadowed;  // some cone meets the ground where the car shadows it
   // Clamped-cosine lobes: ∫ max(0, n·w) V_i / ∫ G_cos V_i per cone (coneCosineRatios), so that
   // the visible share weights the cones by the cosine itself; 1 for every other lobe.
   float cosine_ratio[kMaxCones];
@@ -187,7 +190,8 @@ void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
     set.count = 1;
     set.axis[0] = axis;
     set.lambda = lambdaForHalfValueAngle(a);
-    set.visibility[0] = traceCone(p, axis, a) * groundLit(p, axis);
+    set.visibility[0] = traceCone(p, axis, a);
+    set.ground_lit[0] = groundLit(p, axis);
   } else {
     float cap = capHalfAngleHolding(lambda, uConeCoverage);
     float beta = min(cap / float(2 * CONE_RINGS + 1), uMaxConeHalfAngle);
@@ -205,11 +209,18 @@ void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
       }
     }
     set.lambda = lambdaForHalfValueAngle(beta);
-    for (int i = 0; i < kMaxCones; ++i) set.visibility[i] = traceCone(p, set.axis[i], beta) * groundLit(p, set.axis[i]);
+    for (int i = 0; i < kMaxCones; ++i) {
+      set.visibility[i] = traceCone(p, set.axis[i], beta);
+      set.ground_lit[i] = groundLit(p, set.axis[i]);
+    }
   }
   set.all_visible = true;
+  set.ground_shadowed = false;
   for (int i = 0; i < kMaxCones; ++i)
-    if (i < set.count) set.all_visible = set.all_visible && set.visibility[i] >= 1.0;
+    if (i < set.count) {
+      set.all_visible = set.all_visible && set.visibility[i] >= 1.0;
+      set.ground_shadowed = set.ground_shadowed || set.ground_lit[i] < 1.0;
+    }
 }
 
 // The triple_product_reference.cpp ConeCosineRatios: the SG stand-in of the cosine is 17 % high
@@ -227,7 +238,9 @@ void coneCosineRatios(vec3 n, bool cosine, inout ConeSet set) {
 // The visible share of ∫ G_lobe G_light over the cones: Σ v_i ∫P V_i / Σ ∫P V_i with
 // P = G_lobe G_light and V_i the cone SGs. The exponents are rescaled on the fly (as an online
 // softmax) so that sharp products far from every cone do not underflow to 0/0.
-float visibleShare(SgProduct prod, in ConeSet set) {
+// ground_loss: instead Σ v_i (1 − g_i) ∫P V_i / Σ ∫P V_i, g_i the cones' ground_lit: the share of
+// the product that the car's shadow takes off the ground's bounce.
+float visibleShareOf(SgProduct prod, in ConeSet set, bool ground_loss) {
   float num = 0.0, den = 0.0, top = -3.0e38;
   for (int i = 0; i < kMaxCones; ++i) {
     if (i >= set.count) continue;
@@ -239,11 +252,14 @@ float visibleShare(SgProduct prod, in ConeSet set) {
       top = q.log_amplitude;
     }
     float w = exp(q.log_amplitude - top) * sgShape(q.lambda) * set.cosine_ratio[i];
-    num += w * set.visibility[i];
+    num += w * set.visibility[i] * (ground_loss ? 1.0 - set.ground_lit[i] : 1.0);
     den += w;
   }
-  return den > 0.0 ? num / den : set.visibility[0];
+  if (den > 0.0) return num / den;
+  return ground_loss ? set.visibility[0] * (1.0 - set.ground_lit[0]) : set.visibility[0];
 }
+
+float visibleShare(SgProduct prod, in ConeSet set) { return visibleShareOf(prod, set, false); }
 
 int binLevelFor(float lambda) {
   int k = 0;
@@ -403,6 +419,17 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
     gCount.z += uint(gSet.count);
   }
   shadeLobe(axis, lambda, tail_share, gSet, shaded, unshadowed, gCount);
+  if (gSet.ground_shadowed) {
+    // The lighting's radiance below the horizon stands for the ground's bounce, unshadowed; what
+    // the car's shadow takes off it is the ground's own radiance over the cones that meet the
+    // shadow, whatever SGs carry the lighting across the horizon (triple_product_renderer.h).
+    SgProduct q = sgProduct(axis, lambda, vec3(0, 1, 0), 0.0);
+    float full = gCosine ? clampedCosineLobeIntegral(vec3(0, 1, 0), 0.0, q)
+                         : kTwoPi * exp(q.log_amplitude) * sgShape(q.lambda) * linearFactor(q);
+    // Never below 0: a lobe cannot lose more light than it has.
+    shaded -= min(uGroundRadiance * (full * visibleShareOf(q, gSet, true)), max(shaded, vec3(0.0)));
+    gCount.z += uint(gSet.count);
+  }
   gRadiance += weight * shaded;
   if (uPeakCones != 0)
     for (int k = 0; k < kMaxPeaks; ++k)

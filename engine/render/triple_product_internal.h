@@ -26,6 +26,14 @@ struct PreparedLighting {
   // The ground's irradiance shares of the peaks that get cones (RenderOptions::
   // ground_shadows_bounce): ΣE over the channels, the rest lights the ground through one cone up.
   std::vector<double> ground_peak_share;
+  // The lighting's cosine-weighted mean radiance below the horizon: the ground's unshadowed
+  // bounce, of which the car's shadow takes its share (RenderOptions::ground_shadows_bounce).
+  // Apart: the part of the peaks that get cones, which are shadowed by their own cones alone.
+  glm::vec3 ground_radiance{0};
+  glm::vec3 ground_radiance_traced_peaks{0};
+  glm::vec3 GroundRadiance(bool peak_cones) const {
+    return glm::max(ground_radiance + (peak_cones ? glm::vec3(0) : ground_radiance_traced_peaks), glm::vec3(0));
+  }
 };
 
 // The ground's lit fraction at q (y = 0) for the bounce the car sees there: the up cone for the

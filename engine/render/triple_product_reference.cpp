@@ -19,9 +19,11 @@ using lighting::Sg;
 struct ConeSet {
   std::vector<visibility::Cone> cones;
   std::vector<double> visibility;
+  std::vector<double> ground_lit;    // GroundLit along each cone
   std::vector<double> cosine_ratio;  // per cone; empty but for clamped-cosine lobes
   double lambda = 0;
   bool all_visible = true;
+  bool ground_shadowed = false;  // some cone meets the ground where the car shadows it
 };
 
 // render_shade.comp's groundLit: the ground's lit fraction where a cone from p along dir meets it.
@@ -61,11 +63,13 @@ ConeSet TraceLobeCones(const Sg& lobe, bool cosine, const glm::dvec3& p, const R
   set.lambda = lighting::LambdaForHalfValueAngle(set.cones.front().half_angle);
   for (const auto& c : set.cones) {
     const double v = in.grid ? in.grid->TraceCone({glm::vec3(p), glm::vec3(c.axis), static_cast<float>(c.half_angle)},
-                                                  in.options.trace) *
-                                   GroundLit(p, c.axis, in)
+                                                  in.options.trace)
                              : 1.0;
+    const double g = in.grid ? GroundLit(p, c.axis, in) : 1.0;
     set.visibility.push_back(v);
+    set.ground_lit.push_back(g);
     set.all_visible = set.all_visible && v >= 1.0;
+    set.ground_shadowed = set.ground_shadowed || g < 1.0;
   }
   if (cosine) set.cosine_ratio = ConeCosineRatios(lobe.axis, set);
   return set;
@@ -84,8 +88,11 @@ LogProduct ProductLog(const glm::dvec3& c1, double l1, const glm::dvec3& c2, dou
   return {r > 1e-12 ? s / r : c1, r, sum > 0 ? -l1 * l2 * glm::dot(d, d) / (r + sum) : 0.0};
 }
 
-// Σ v_i ∫P V_i / Σ ∫P V_i (see triple_product_renderer.h), exponents shifted by their maximum.
-double VisibleShare(const Sg& product, const ConeSet& set) {
+// Σ v_i ∫P V_i / Σ ∫P V_i (see triple_product_renderer.h), exponents shifted by their maximum;
+// ground_loss: Σ v_i (1 − g_i) ∫P V_i / Σ ∫P V_i, the share the car's shadow takes off the
+// ground's bounce (render_shade.comp's visibleShareOf).
+double VisibleShare(const Sg& product, const ConeSet& set, bool ground_loss = false) {
+  const auto value = [&](std::size_t i) { return set.visibility[i] * (ground_loss ? 1.0 - set.ground_lit[i] : 1.0); };
   std::vector<double> log_w(set.cones.size());
   double top = -std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < set.cones.size(); ++i) {
@@ -97,14 +104,14 @@ double VisibleShare(const Sg& product, const ConeSet& set) {
       log_w[i] += set.cosine_ratio[i] > 0 ? std::log(set.cosine_ratio[i]) : -std::numeric_limits<double>::infinity();
     top = std::max(top, log_w[i]);
   }
-  if (!(top > -std::numeric_limits<double>::infinity())) return set.visibility.front();
+  if (!(top > -std::numeric_limits<double>::infinity())) return value(0);
   double num = 0, den = 0;
   for (std::size_t i = 0; i < set.cones.size(); ++i) {
     const double w = std::exp(log_w[i] - top);
-    num += w * set.visibility[i];
+    num += w * value(i);
     den += w;
   }
-  return den > 0 ? num / den : set.visibility.front();
+  return den > 0 ? num / den : value(0);
 }
 
 // The unshadowed ∫ lobe × light (the lobe's SG of unit amplitude, or for a clamped-cosine lobe
@@ -253,6 +260,15 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
               const ConeSet set = TraceLobeCones(unit, cosine, origin, in);
               glm::dvec3 shaded(0), unshadowed(0);
               ShadeLobe(lobe, set, in, &shaded, &unshadowed, &count);
+              if (set.ground_shadowed) {
+                // render_shade.comp's emitLobe: the ground's own radiance over the cones that
+                // meet its shadow, whatever SGs carry the lighting across the horizon.
+                // Never below 0: a lobe cannot lose more light than it has.
+                const glm::dvec3 loss = glm::dvec3(in.lighting->GroundRadiance(in.options.peak_cones)) *
+                                        (FullIntegral(lobe, Sg{{0, 1, 0}, 0.0, 1.0}) * VisibleShare(unit, set, true));
+                shaded -= glm::min(loss, glm::max(shaded, glm::dvec3(0)));
+                count.triples += static_cast<unsigned>(set.cones.size());
+              }
               // A clamped-cosine lobe's weight is the whole of it; an SG lobe's amplitude is apart.
               const glm::dvec3 weight = lobe.weight * (cosine ? 1.0 : lobe.sg.amplitude);
               radiance += weight * shaded;

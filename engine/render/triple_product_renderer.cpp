@@ -206,6 +206,20 @@ detail::PreparedLighting Prepare(const lighting::SgLighting& model, const glm::d
     if (k < TripleProductRenderer::kMaxPeakCones) peak_e.push_back(e);
   }
   for (double e : peak_e) p.ground_peak_share.push_back(total > 0 ? e / total : 0.0);
+  // The lighting's mean radiance below the horizon, cosine-weighted (E from below / π).
+  const glm::dvec3 down(0, -1, 0);
+  glm::dvec3 e_down = glm::dvec3(p.constant) * material::ClampedCosineIntegral(down, {down, 0.0, 1.0});
+  for (const auto& s : p.srbfs)
+    if (s.amplitude != glm::vec3(0))
+      e_down += glm::dvec3(s.amplitude) * material::ClampedCosineIntegral(down, {s.axis, s.lambda, 1.0});
+  glm::dvec3 e_traced(0);
+  for (std::size_t k = 0; k < p.peaks.size(); ++k) {
+    const auto& pk = p.peaks[k];
+    (k < TripleProductRenderer::kMaxPeakCones ? e_traced : e_down) +=
+        glm::dvec3(pk.amplitude) * material::ClampedCosineIntegral(down, {pk.axis, pk.lambda, 1.0});
+  }
+  p.ground_radiance = glm::vec3(e_down / 3.14159265358979323846);
+  p.ground_radiance_traced_peaks = glm::vec3(e_traced / 3.14159265358979323846);
   return p;
 }
 
@@ -819,6 +833,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
 
   const glm::dvec2 ground_centre(im.bounds.empty() ? 0.0 : im.bounds.center().x,
                                  im.bounds.empty() ? 0.0 : im.bounds.center().z);
+  const glm::vec3 ground_radiance = im.lighting.GroundRadiance(options_.peak_cones);
   const std::size_t pixels = static_cast<std::size_t>(w) * h;
   std::vector<detail::PixelCounts> counts;
 
@@ -849,7 +864,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uGroundCenter", static_cast<float>(ground_centre.x), static_cast<float>(ground_centre.y))
         .Set("uGroundHalfSize", static_cast<float>(options_.ground_half_size))
         .Set("uGroundShadowsBounce", options_.ground && options_.ground_shadows_bounce ? 1 : 0)
-        .Set("uGroundLitHalfAngle", static_cast<float>(kGroundLitHalfAngle));
+        .Set("uGroundLitHalfAngle", static_cast<float>(kGroundLitHalfAngle))
+        .Set("uGroundRadiance", ground_radiance.x, ground_radiance.y, ground_radiance.z);
     {
       std::array<float, 6> level_lambda;
       level_lambda.fill(3e38f);  // beyond the levels used: never deep enough

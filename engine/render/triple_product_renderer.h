@@ -98,9 +98,13 @@ struct RenderOptions {
   bool ground = true;            // the shadow catcher
   double ground_half_size = 30;  // metres around the model's centre (Cycles' 60 m catcher)
   // Light from below the horizon stands for the ground's bounce (see above); the car's shadow
-  // darkens that bounce. A cone whose axis meets the ground within the catcher has its visibility
-  // scaled by the ground's lit fraction there: one cone straight up of kGroundLitHalfAngle for
-  // the broad light, each traced peak's own cone for its share (detail::GroundLitFraction).
+  // darkens that bounce. Per lobe, the cones whose axes meet the ground within the catcher take
+  // off the ground's radiance (the lighting's cosine-weighted mean below the horizon) times their
+  // visibility and the ground's shadowed fraction there: one cone straight up of
+  // kGroundLitHalfAngle for the broad light, each traced peak's own cone for its share
+  // (detail::GroundLitFraction). Scaling every lighting SG's share in those cones instead took
+  // the sky's light too, wherever the SGs carry the lighting across the horizon: studio_diffuse
+  // read 0.154 against Cycles, 0.117 now (docs/benchmarks/render_accuracy.md).
   // Cycles' catcher is shadowed where the car sees it: rendered with the unshadowed stand-in
   // instead, studio_glossy lands 31 % (mean relative) off its reference, 8 % with the shadow
   // (docs/benchmarks/render_accuracy.md).
