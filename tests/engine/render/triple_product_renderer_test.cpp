@@ -423,17 +423,25 @@ TEST_F(TripleProductRendererGL, ShadowUnderTheCarAndNoneWithoutIt) {
   EXPECT_GT(*std::min_element(none.background.rgb.begin(), none.background.rgb.end()), 0.09f);
 }
 
+// A grey box floating 0.3 m above the ground, and a camera low beside it that sees its
+// underside, front and side: the faces that see the ground it shadows.
+scene::GltfScene FloatingBox() {
+  scene::GltfScene car;
+  car.materials = {Pbr("body", {0.5f, 0.5f, 0.5f}, 0.f, 0.9f)};
+  car.primitives.push_back(BoxPrimitive({-1.0f, 0.3f, -0.5f}, {1.0f, 1.2f, 0.5f}, 0));
+  odvr::testing::Finish(&car);
+  return car;
+}
+PinholeCamera FloatingBoxCamera() { return PinholeCamera::LookAt({-2.5, 0.2, 3.0}, {0, 0.6, 0}, 45, kW, kH); }
+
 // RenderOptions::ground_shadows_bounce: light from below the horizon (the ground's bounce) is
 // darkened where the car shadows the ground. A box floating 0.3 m up under a constant light from
 // every direction: its faces that see the ground under and beside it get less with the term
 // than without (the underside most), the GPU agrees with the CPU reference, and a light with
 // nothing below the horizon is not touched by it.
 TEST_F(TripleProductRendererGL, CarSeesItsShadowOnTheGround) {
-  scene::GltfScene car;
-  car.materials = {Pbr("body", {0.5f, 0.5f, 0.5f}, 0.f, 0.9f)};
-  car.primitives.push_back(BoxPrimitive({-1.0f, 0.3f, -0.5f}, {1.0f, 1.2f, 0.5f}, 0));
-  odvr::testing::Finish(&car);
-  const PinholeCamera cam = PinholeCamera::LookAt({-2.5, 0.2, 3.0}, {0, 0.6, 0}, 45, kW, kH);
+  const scene::GltfScene car = FloatingBox();
+  const PinholeCamera cam = FloatingBoxCamera();
   lighting::SgLighting everywhere;
   everywhere.constant = glm::vec3(1.f);
   const auto mean_car = [](const RenderResult& r) {
@@ -477,11 +485,8 @@ TEST_F(TripleProductRendererGL, CarSeesItsShadowOnTheGround) {
 // in those cones by the ground's lit fraction (this renderer until it was measured against
 // Cycles) took 13.2 % more (measured).
 TEST_F(TripleProductRendererGL, CarsShadowTakesTheGroundsRadianceOffItsBounce) {
-  scene::GltfScene car;
-  car.materials = {Pbr("body", {0.5f, 0.5f, 0.5f}, 0.f, 0.9f)};
-  car.primitives.push_back(BoxPrimitive({-1.0f, 0.3f, -0.5f}, {1.0f, 1.2f, 0.5f}, 0));
-  odvr::testing::Finish(&car);
-  const PinholeCamera cam = PinholeCamera::LookAt({-2.5, 0.2, 3.0}, {0, 0.6, 0}, 45, kW, kH);
+  const scene::GltfScene car = FloatingBox();
+  const PinholeCamera cam = FloatingBoxCamera();
   RenderOptions on;
   on.voxel_resolution = 64;
   on.peak_cones = false;  // the light is seen through the lobes' cones, as every SRBF is
