@@ -81,12 +81,14 @@ glm::dvec3 Vec3(const nlohmann::json& j) {
   return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()};
 }
 
-// Cycles' scene has the catcher under the car: seen from the car, everything below the horizon
-// is that plane, diffuse albedo 0.18 (references.json), lit by the map's upper half. Both
-// renderers here light from the map's lower half, so the map's lower half becomes that plane's
-// radiance, 0.18 E / π, E the horizontal irradiance from the upper half; the car's own shadow on
-// the plane, which Cycles does see, the renderers add (RenderOptions::ground_shadows_bounce).
-void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo) {
+// Cycles' scene has the catcher under the car: seen from the car, below the horizon is that
+// plane, diffuse albedo 0.18 (references.json), lit by the map's upper half. Both renderers here
+// light from the map's lower half, so the map's lower half becomes that plane's radiance,
+// 0.18 E / π, E the horizontal irradiance from the upper half; the car's own shadow on the plane,
+// which Cycles does see, the renderers add (RenderOptions::ground_shadows_bounce). The plane
+// ends (60 m): within `keep_below_horizon` radians under the horizon the car's rays pass beyond
+// it and Cycles sees the map itself, which stays.
+void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo, double keep_below_horizon) {
   const int w = env->width, h = env->height;
   glm::dvec3 e(0);
   for (int y = 0; y < h; ++y) {
@@ -97,9 +99,25 @@ void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo) {
       for (int c = 0; c < 3; ++c) e[c] += env->at(x, y)[c] * std::sin(lat) * d_omega;
   }
   const glm::dvec3 radiance = albedo * e / 3.14159265358979323846;
-  for (int y = h / 2; y < h; ++y)
+  for (int y = h / 2; y < h; ++y) {
+    const double below = 3.14159265358979323846 * ((y + 0.5) / h - 0.5);
+    if (below < keep_below_horizon) continue;
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) env->at(x, y)[c] = static_cast<float>(radiance[c]);
+  }
+}
+
+// How far under the horizon the car's rays pass beyond Cycles' catcher: from the model's
+// mid-height, at the mean distance from the centre of a square of half-size s to its edge,
+// s (4/π) ln(1 + √2). A bright wall just under the horizon (studio.exr: mean radiance 2.9 within
+// 5° under it, the stand-in 0.80) lit the car's sides in Cycles; replaced, studio_diffuse read 3.8 %
+// dark (docs/benchmarks/render_accuracy.md).
+double KeepBelowHorizon(const nlohmann::json& j) {
+  const auto& box = j.at("model_box_odvr");
+  const double mid_height = 0.5 * (box.at(0).at(1).get<double>() + box.at(1).at(1).get<double>());
+  const double mean_distance =
+      render::RenderOptions{}.ground_half_size * (4 / 3.14159265358979323846) * std::log(1 + std::sqrt(2.0));
+  return std::atan2(std::max(mid_height, 0.0), mean_distance);
 }
 
 std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& repo, bool ground_bounce) {
@@ -121,7 +139,8 @@ std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& 
       r.env = image::LoadImage(repo / im.at("env").get<std::string>(), {.max_width = 8192, .require_equirect = true});
       image::SanitizePixels(&r.env);  // Cycles clamps the lossy EXR's negative pixels to 0 too
       if (ground_bounce)
-        ReplaceLowerHemisphereByGround(&r.env, j.at("catcher").at("albedo_seen_by_the_car").get<double>());
+        ReplaceLowerHemisphereByGround(&r.env, j.at("catcher").at("albedo_seen_by_the_car").get<double>(),
+                                       KeepBelowHorizon(j));
       const auto& m = im.at("env_world_from_env_odvr");
       for (int row = 0; row < 3; ++row)
         for (int c = 0; c < 3; ++c) r.world_from_env[c][row] = m.at(row).at(c).get<double>();
