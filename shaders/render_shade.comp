@@ -60,7 +60,7 @@ uniform vec2 uGroundCenter;  // xz
 uniform float uGroundHalfSize;
 uniform int uGroundShadowsBounce;  // RenderOptions::ground_shadows_bounce
 uniform float uGroundLitHalfAngle;
-uniform vec3 uGroundRadiance;  // detail::PreparedLighting::ground_radiance
+uniform vec3 uGroundRadiance;  // detail::PreparedLighting::GroundRadiance
 
 uniform int uGroundPeakCount;
 uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
