@@ -132,6 +132,7 @@ std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& 
   }
   std::vector<Reference> refs;
   try {
+    const double keep_below_horizon = ground_bounce ? KeepBelowHorizon(j) : 0.0;
     for (const auto& im : j.at("images")) {
       Reference r;
       r.name = im.at("name").get<std::string>();
@@ -140,7 +141,7 @@ std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& 
       image::SanitizePixels(&r.env);  // Cycles clamps the lossy EXR's negative pixels to 0 too
       if (ground_bounce)
         ReplaceLowerHemisphereByGround(&r.env, j.at("catcher").at("albedo_seen_by_the_car").get<double>(),
-                                       KeepBelowHorizon(j));
+                                       keep_below_horizon);
       const auto& m = im.at("env_world_from_env_odvr");
       for (int row = 0; row < 3; ++row)
         for (int c = 0; c < 3; ++c) r.world_from_env[c][row] = m.at(row).at(c).get<double>();

@@ -191,33 +191,26 @@ detail::PreparedLighting Prepare(const lighting::SgLighting& model, const glm::d
     p.peaks.push_back(pk);
   }
   p.sg_count += static_cast<int>(p.peaks.size());
-  // The ground's irradiance (channels summed): the traced peaks' shares of it.
-  const glm::dvec3 up(0, 1, 0);
-  const auto sum = [](const glm::vec3& a) { return static_cast<double>(a.x + a.y + a.z); };
-  double total = sum(p.constant) * material::ClampedCosineIntegral(up, {up, 0.0, 1.0});
-  for (const auto& s : p.srbfs)
-    if (s.amplitude != glm::vec3(0))
-      total += sum(s.amplitude) * material::ClampedCosineIntegral(up, {s.axis, s.lambda, 1.0});
+  // One pass over the lights for the ground: its irradiance from above (channels summed), of
+  // which the traced peaks' shares, and the lighting's cosine-weighted mean radiance below the
+  // horizon (E from below / π), the traced peaks' part apart.
+  const glm::dvec3 up(0, 1, 0), down(0, -1, 0);
+  double total = 0;
+  glm::dvec3 e_down(0), e_traced(0);
   std::vector<double> peak_e;
-  for (std::size_t k = 0; k < p.peaks.size(); ++k) {
-    const auto& pk = p.peaks[k];
-    const double e = sum(pk.amplitude) * material::ClampedCosineIntegral(up, {pk.axis, pk.lambda, 1.0});
-    total += e;
-    if (k < TripleProductRenderer::kMaxPeakCones) peak_e.push_back(e);
-  }
-  for (double e : peak_e) p.ground_peak_share.push_back(total > 0 ? e / total : 0.0);
-  // The lighting's mean radiance below the horizon, cosine-weighted (E from below / π).
-  const glm::dvec3 down(0, -1, 0);
-  glm::dvec3 e_down = glm::dvec3(p.constant) * material::ClampedCosineIntegral(down, {down, 0.0, 1.0});
+  const auto add = [&](const glm::vec3& amplitude, const glm::dvec3& axis, double lambda, bool traced) {
+    const double e_up = material::ClampedCosineIntegral(up, {axis, lambda, 1.0}) *
+                        static_cast<double>(amplitude.x + amplitude.y + amplitude.z);
+    total += e_up;
+    if (traced) peak_e.push_back(e_up);
+    (traced ? e_traced : e_down) += glm::dvec3(amplitude) * material::ClampedCosineIntegral(down, {axis, lambda, 1.0});
+  };
+  add(p.constant, up, 0.0, false);
   for (const auto& s : p.srbfs)
-    if (s.amplitude != glm::vec3(0))
-      e_down += glm::dvec3(s.amplitude) * material::ClampedCosineIntegral(down, {s.axis, s.lambda, 1.0});
-  glm::dvec3 e_traced(0);
-  for (std::size_t k = 0; k < p.peaks.size(); ++k) {
-    const auto& pk = p.peaks[k];
-    (k < TripleProductRenderer::kMaxPeakCones ? e_traced : e_down) +=
-        glm::dvec3(pk.amplitude) * material::ClampedCosineIntegral(down, {pk.axis, pk.lambda, 1.0});
-  }
+    if (s.amplitude != glm::vec3(0)) add(s.amplitude, s.axis, s.lambda, false);
+  for (std::size_t k = 0; k < p.peaks.size(); ++k)
+    add(p.peaks[k].amplitude, p.peaks[k].axis, p.peaks[k].lambda, k < TripleProductRenderer::kMaxPeakCones);
+  for (double e : peak_e) p.ground_peak_share.push_back(total > 0 ? e / total : 0.0);
   p.ground_radiance = glm::vec3(e_down / 3.14159265358979323846);
   p.ground_radiance_traced_peaks = glm::vec3(e_traced / 3.14159265358979323846);
   return p;
