@@ -42,6 +42,7 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
     tsv << "car\tmc\texact\t320\t180\t0\t0\t256\t16\t0.08\t0.08\t0.9\t0.7\t0.04\t100\t1000\t900\t920\n";
     // A reference whose SG error meets the target and lies below every MC row: a lower bound.
     tsv << "paint\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.08\t0.08\t1.0\t0.9\t-1\t0\t900\t50\t60\n";
+    tsv << "paint\tsg\tsplit-axis\t320\t180\t2\t7\t128\t0\t0.25\t0.25\t1.0\t0.8\t-1\t0\t900\t20\t30\n";
     tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t4\t0.5\t0.5\t1.0\t0.2\t-1\t0\t900\t100\t110\n";
     tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t64\t0.2\t0.2\t1.0\t0.5\t-1\t0\t900\t2000\t2010\n";
     // The timing-only row at 1280×720: 250 ms in all is 4 fps.
@@ -49,13 +50,23 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
   }
   const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("10 rows"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("11 rows"), std::string::npos) << r.out;
   const std::string md = ReadText(d.dir / "render.md");
   EXPECT_NE(md.find("a test machine"), std::string::npos);
-  EXPECT_NE(md.find("| car | 0.200 | no | 0.800 | 0.050 | 100.0 | 400 | 4.0× |"), std::string::npos) << md;
-  EXPECT_NE(md.find("| paint | 0.080 | yes | 0.900 | – | 50.0 | >2000 | >40.0× |"), std::string::npos) << md;
+  // car: no SG row reaches MC's best error (0.1 at 16 samples); paint: MC's best is 0.2 at 2000
+  // ms, and the cheapest SG row at or below it is the 5-level one at 50 ms (the 2-level one at
+  // 0.25 is cheaper but less accurate).
+  EXPECT_NE(md.find("| car | 0.200 | no | 0.800 | 0.050 | 100.0 | 400 | 4.0× | 0.100, 800 | – | – |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| paint | 0.080 | yes | 0.900 | – | 50.0 | >2000 | >40.0× | 0.200, 2000 | split-axis, 5 levels, "
+                    "7 cones, 128³: 0.080, 50 | 40.0× |"),
+            std::string::npos)
+      << md;
   EXPECT_NE(md.find("≤ 10 % on car pixels:** 1 of 2"), std::string::npos) << md;
-  EXPECT_NE(md.find("at equal error:** 1 of 2"), std::string::npos) << md;
+  EXPECT_NE(md.find("at equal error:** 1 of 2 at the default configuration's error; 1 of 2 at MC's best error"),
+            std::string::npos)
+      << md;
   EXPECT_NE(md.find("= 4.00 fps"), std::string::npos) << md;
   EXPECT_TRUE(fs::exists(d.dir / "render.gnuplot"));
   // The TSV is read back unchanged.
