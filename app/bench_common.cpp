@@ -1,12 +1,16 @@
 #include "app/bench_common.h"
 
 #include <spdlog/fmt/fmt.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <thread>
+
+#include "engine/core/atomic_file.h"
 
 namespace odvr::app {
 
@@ -15,6 +19,22 @@ double Median(std::vector<double> values) {
   std::sort(values.begin(), values.end());
   const std::size_t n = values.size();
   return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+void WritePlot(const std::filesystem::path& dir, const std::string& stem, int width, int height,
+               const std::string& body, const std::string& bench) {
+  const std::string script = stem + ".gnuplot";
+  WriteTextAtomically(dir / script, fmt::format("set terminal pngcairo size {},{} noenhanced\nset output '{}.png'\n{}",
+                                                width, height, stem, body));
+  const std::string command = "cd " + ShellQuote(dir.string()) + " && gnuplot " + ShellQuote(script) + " 2>/dev/null";
+  if (std::system(command.c_str()) != 0)
+    spdlog::warn("{}: gnuplot failed; the table and its data are written, the plot is not", bench);
+}
+
+std::string ShellQuote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
 }
 
 std::string BenchMachineDescription() {

@@ -2,6 +2,7 @@
 // What every `odvr bench …` shares: medians, the machine a figure was measured on, and progress
 // with an ETA on a terminal (benchmarks run for minutes).
 #include <chrono>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -11,6 +12,16 @@ double Median(std::vector<double> values);
 
 // CPU model and core count, for the header of a benchmark table.
 std::string BenchMachineDescription();
+
+// Writes `dir/<stem>.gnuplot` (a PNG terminal of width×height, output `<stem>.png`, then `body`)
+// and runs gnuplot in `dir`: the script names its data and its picture relative to itself, so a
+// copy in docs/benchmarks redraws there. A gnuplot that fails is a warning naming `bench`: the
+// table and the data are written by then.
+void WritePlot(const std::filesystem::path& dir, const std::string& stem, int width, int height,
+               const std::string& body, const std::string& bench);
+
+// `s` as one single-quoted shell word.
+std::string ShellQuote(const std::string& s);
 
 class BenchProgress {
  public:

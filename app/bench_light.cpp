@@ -303,11 +303,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchLightOptions& o, const
   WriteTextAtomically(fs::path(o.out_dir) / "lighting.md", md.str());
 
   // The plot: gnuplot reads the TSV directly.
-  const fs::path script = fs::path(o.out_dir) / "lighting.gnuplot";
   std::ostringstream gp;
-  gp << "set terminal pngcairo size 1200,520 noenhanced\nset output '"
-     << (fs::path(o.out_dir) / "lighting.png").string()
-     << "'\nset datafile separator '\\t'\nset logscale xy\nset key outside right\nset grid\n"
+  gp << "set datafile separator '\\t'\nset logscale xy\nset key outside right\nset grid\n"
      << "set multiplot layout 1,2\n";
   for (const char* col : {"diffuse", "glossy200"}) {
     const int index = std::string(col) == "diffuse" ? 9 : 11;
@@ -315,16 +312,14 @@ void WriteReport(const std::vector<Row>& rows, const BenchLightOptions& o, const
        << " error'\nplot ";
     bool first = true;
     for (const char* m : {"sg", "sg+peaks", "least-squares", "sh"}) {
-      gp << (first ? "" : ", ") << "'" << (fs::path(o.out_dir) / "lighting.tsv").string() << "' using (strcol(3) eq '"
-         << m << "' ? $7 : 1/0):" << index << " with points title '" << m << "'";
+      gp << (first ? "" : ", ") << "'lighting.tsv' using (strcol(3) eq '" << m << "' ? $7 : 1/0):" << index
+         << " with points title '" << m << "'";
       first = false;
     }
     gp << "\n";
   }
   gp << "unset multiplot\n";
-  WriteTextAtomically(script, gp.str());
-  if (std::system(("gnuplot " + script.string() + " 2>/dev/null").c_str()) != 0)
-    spdlog::warn("bench light: gnuplot failed; the table and TSV are written, the plot is not");
+  WritePlot(o.out_dir, "lighting", 1200, 520, gp.str(), "bench light");
 }
 
 int RunBenchLight(BenchLightOptions o) {

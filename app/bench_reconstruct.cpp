@@ -340,12 +340,6 @@ void RunOurs(const BenchReconstructOptions& o, const capture::Rig& rig, long fra
 
 // ---- COLMAP ----------------------------------------------------------------------------------
 
-std::string ShellQuote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 // The binary as the shell would find it; throws the error the user needs when it is absent.
 std::string FindColmap(const std::string& name) {
   const auto executable = [](const fs::path& p) { return fs::is_regular_file(p) && ::access(p.c_str(), X_OK) == 0; };
@@ -781,9 +775,8 @@ void WriteReport(const Results& r, const BenchReconstructOptions& o) {
         "![Trajectories seen from above](tracking.png)\n";
   WriteTextAtomically(dir / "tracking.md", md.str());
 
-  const fs::path script = dir / "tracking.gnuplot";
   std::ostringstream gp;
-  const std::string paths = (dir / "tracking_paths.tsv").string();
+  const std::string paths = "tracking_paths.tsv";
   std::vector<std::string> methods;
   for (const auto& p : r.paths)
     if (p.method != "ground truth" && std::find(methods.begin(), methods.end(), p.method) == methods.end())
@@ -799,8 +792,7 @@ void WriteReport(const Results& r, const BenchReconstructOptions& o) {
       gp << p.method << "\t" << p.frame << "\t" << fmt::format("{:.2f}", 1000 * (p.position - it->second).norm())
          << "\n";
   gp << "EOD\n"
-     << "set terminal pngcairo size 1000,900 noenhanced\nset output '" << (dir / "tracking.png").string()
-     << "'\nset datafile separator '\\t'\nset multiplot layout 2,1\nset key outside right\nset grid\n"
+     << "set datafile separator '\\t'\nset multiplot layout 2,1\nset key outside right\nset grid\n"
      << "set size ratio -1\nset title 'rig trajectory seen from above (ground-truth world, estimates "
         "similarity-aligned)'\nset xlabel 'x (m)'\nset ylabel 'y (m)'\nplot '"
      << paths
@@ -820,9 +812,7 @@ void WriteReport(const Results& r, const BenchReconstructOptions& o) {
   }
   if (methods.empty()) gp << "0 notitle";
   gp << "\nunset multiplot\n";
-  WriteTextAtomically(script, gp.str());
-  if (std::system(("gnuplot " + ShellQuote(script.string()) + " 2>/dev/null").c_str()) != 0)
-    spdlog::warn("bench reconstruct: gnuplot failed; the table and TSVs are written, the plot is not");
+  WritePlot(dir, "tracking", 1000, 900, gp.str(), "bench reconstruct");
 }
 
 int RunBenchReconstruct(const BenchReconstructOptions& o) {

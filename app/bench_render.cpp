@@ -537,18 +537,14 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
         "(render.png)\n";
   WriteTextAtomically(fs::path(o.out_dir) / "render.md", md.str());
 
-  const fs::path script = fs::path(o.out_dir) / "render.gnuplot";
   std::ostringstream gp;
-  const std::string data = (fs::path(o.out_dir) / "render.tsv").string();
-  gp << "set terminal pngcairo size 1000,600 noenhanced\nset output '" << (fs::path(o.out_dir) / "render.png").string()
-     << "'\nset datafile separator '\\t'\nset logscale xy\nset key outside right\nset grid\n"
+  const std::string data = "render.tsv";
+  gp << "set datafile separator '\\t'\nset logscale xy\nset key outside right\nset grid\n"
      << "set title 'car pixels: mean relative error against Cycles vs shade time'\nset xlabel 'shade ms'\n"
      << "set ylabel 'mean relative error'\nplot '" << data
      << "' using (strcol(2) eq 'sg' && $16 > 0 ? $17 : 1/0):10 with points pt 7 title 'SG triple product', '" << data
      << "' using (strcol(2) eq 'mc' && $16 > 0 ? $17 : 1/0):10 with points pt 5 title 'Monte-Carlo'\n";
-  WriteTextAtomically(script, gp.str());
-  if (std::system(("gnuplot " + script.string() + " 2>/dev/null").c_str()) != 0)
-    spdlog::warn("bench render: gnuplot failed; the table and TSV are written, the plot is not");
+  WritePlot(o.out_dir, "render", 1000, 600, gp.str(), "bench render");
 }
 
 int RunBenchRender(BenchRenderOptions o) {

@@ -370,25 +370,21 @@ void WriteReport(const std::vector<Row>& rows, const BenchStitchOptions& o, cons
         "![PSNR against time](stitch.png)\n";
   WriteTextAtomically(fs::path(o.out_dir) / "stitch.md", md.str());
 
-  const fs::path script = fs::path(o.out_dir) / "stitch.gnuplot";
   std::ostringstream gp;
-  gp << "set terminal pngcairo size 900,520 noenhanced\nset output '" << (fs::path(o.out_dir) / "stitch.png").string()
-     << "'\nset datafile separator '\\t'\nset logscale x\nset key outside right\nset grid\n"
+  gp << "set datafile separator '\\t'\nset logscale x\nset key outside right\nset grid\n"
      << "set title 'stitching " << o.width << "x" << o.height
      << ": PSNR against the ground truth vs time per frame'\nset xlabel 'ms per frame'\nset ylabel 'PSNR (dB)'\nplot ";
   // One colour per method; filled points for the valid mask, open ones for the seams.
   bool first = true;
   for (std::size_t m = 0; m < order.size(); ++m)
     for (const auto& [col, what, shape] : {std::tuple{4, "valid", 7}, std::tuple{5, "seams", 6}}) {
-      gp << (first ? "" : ", ") << "'" << tsv.string() << "' using (strcol(2) eq '" << order[m]
+      gp << (first ? "" : ", ") << "'" << tsv.filename().string() << "' using (strcol(2) eq '" << order[m]
          << "' ? $3 : 1/0):" << col << " with points pt " << shape << " ps 1.5 lc " << m + 1 << " title '" << order[m]
          << " (" << what << ")'";
       first = false;
     }
   gp << "\n";
-  WriteTextAtomically(script, gp.str());
-  if (std::system(("gnuplot " + script.string() + " 2>/dev/null").c_str()) != 0)
-    spdlog::warn("bench stitch: gnuplot failed; the table and TSV are written, the plot is not");
+  WritePlot(o.out_dir, "stitch", 900, 520, gp.str(), "bench stitch");
 }
 
 int RunBenchStitch(const BenchStitchOptions& o) {

@@ -1,5 +1,5 @@
 set terminal pngcairo size 1000,600 noenhanced
-set output '/tmp/bench_full2/render.png'
+set output 'render.png'
 set datafile separator '\t'
 set logscale xy
 set key outside right
@@ -7,4 +7,4 @@ set grid
 set title 'car pixels: mean relative error against Cycles vs shade time'
 set xlabel 'shade ms'
 set ylabel 'mean relative error'
-plot '/tmp/bench_full2/render.tsv' using (strcol(2) eq 'sg' && $16 > 0 ? $17 : 1/0):10 with points pt 7 title 'SG triple product', '/tmp/bench_full2/render.tsv' using (strcol(2) eq 'mc' && $16 > 0 ? $17 : 1/0):10 with points pt 5 title 'Monte-Carlo'
+plot 'render.tsv' using (strcol(2) eq 'sg' && $16 > 0 ? $17 : 1/0):10 with points pt 7 title 'SG triple product', 'render.tsv' using (strcol(2) eq 'mc' && $16 > 0 ? $17 : 1/0):10 with points pt 5 title 'Monte-Carlo'

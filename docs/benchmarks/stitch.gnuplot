@@ -1,5 +1,5 @@
 set terminal pngcairo size 900,520 noenhanced
-set output 'docs/benchmarks/stitch.png'
+set output 'stitch.png'
 set datafile separator '\t'
 set logscale x
 set key outside right
@@ -7,4 +7,4 @@ set grid
 set title 'stitching 1024x512: PSNR against the ground truth vs time per frame'
 set xlabel 'ms per frame'
 set ylabel 'PSNR (dB)'
-plot 'docs/benchmarks/stitch.tsv' using (strcol(2) eq 'odvr cpu' ? $3 : 1/0):4 with points pt 7 ps 1.5 lc 1 title 'odvr cpu (valid)', 'docs/benchmarks/stitch.tsv' using (strcol(2) eq 'odvr cpu' ? $3 : 1/0):5 with points pt 6 ps 1.5 lc 1 title 'odvr cpu (seams)', 'docs/benchmarks/stitch.tsv' using (strcol(2) eq 'odvr gpu' ? $3 : 1/0):4 with points pt 7 ps 1.5 lc 2 title 'odvr gpu (valid)', 'docs/benchmarks/stitch.tsv' using (strcol(2) eq 'odvr gpu' ? $3 : 1/0):5 with points pt 6 ps 1.5 lc 2 title 'odvr gpu (seams)', 'docs/benchmarks/stitch.tsv' using (strcol(2) eq 'opencv' ? $3 : 1/0):4 with points pt 7 ps 1.5 lc 3 title 'opencv (valid)', 'docs/benchmarks/stitch.tsv' using (strcol(2) eq 'opencv' ? $3 : 1/0):5 with points pt 6 ps 1.5 lc 3 title 'opencv (seams)'
+plot 'stitch.tsv' using (strcol(2) eq 'odvr cpu' ? $3 : 1/0):4 with points pt 7 ps 1.5 lc 1 title 'odvr cpu (valid)', 'stitch.tsv' using (strcol(2) eq 'odvr cpu' ? $3 : 1/0):5 with points pt 6 ps 1.5 lc 1 title 'odvr cpu (seams)', 'stitch.tsv' using (strcol(2) eq 'odvr gpu' ? $3 : 1/0):4 with points pt 7 ps 1.5 lc 2 title 'odvr gpu (valid)', 'stitch.tsv' using (strcol(2) eq 'odvr gpu' ? $3 : 1/0):5 with points pt 6 ps 1.5 lc 2 title 'odvr gpu (seams)', 'stitch.tsv' using (strcol(2) eq 'opencv' ? $3 : 1/0):4 with points pt 7 ps 1.5 lc 3 title 'opencv (valid)', 'stitch.tsv' using (strcol(2) eq 'opencv' ? $3 : 1/0):5 with points pt 6 ps 1.5 lc 3 title 'opencv (seams)'

@@ -1,3 +1,5 @@
+set terminal pngcairo size 1000,900 noenhanced
+set output 'tracking.png'
 $errors << EOD
 odvr	0	9.01
 odvr	1	8.41
@@ -80,8 +82,6 @@ colmap	37	10.58
 colmap	38	11.20
 colmap	39	13.09
 EOD
-set terminal pngcairo size 1000,900 noenhanced
-set output 'docs/benchmarks/tracking.png'
 set datafile separator '\t'
 set multiplot layout 2,1
 set key outside right
@@ -90,7 +90,7 @@ set size ratio -1
 set title 'rig trajectory seen from above (ground-truth world, estimates similarity-aligned)'
 set xlabel 'x (m)'
 set ylabel 'y (m)'
-plot 'docs/benchmarks/tracking_paths.tsv' using (strcol(1) eq 'ground truth' ? $3 : 1/0):4 with lines lw 5 lc rgb '#aaaaaa' title 'ground truth', 'docs/benchmarks/tracking_paths.tsv' using (strcol(1) eq 'odvr' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 1 title 'odvr', 'docs/benchmarks/tracking_paths.tsv' using (strcol(1) eq 'colmap' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 2 title 'colmap'
+plot 'tracking_paths.tsv' using (strcol(1) eq 'ground truth' ? $3 : 1/0):4 with lines lw 5 lc rgb '#aaaaaa' title 'ground truth', 'tracking_paths.tsv' using (strcol(1) eq 'odvr' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 1 title 'odvr', 'tracking_paths.tsv' using (strcol(1) eq 'colmap' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 2 title 'colmap'
 set size noratio
 set title 'position error after the alignment'
 set xlabel 'frame'
