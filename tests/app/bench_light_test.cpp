@@ -72,6 +72,35 @@ TEST(BenchLight, ReportComparesWithTheLeastSquaresFitOfTheSameWidth) {
   EXPECT_NE(md.find("| bridge | 0.50 | 1.50 | 1.50 | 80 |"), std::string::npos) << md;
   EXPECT_NE(md.find("| city | 1.00 | 1.00 | 2.00 | 50 |"), std::string::npos) << md;
   EXPECT_NE(md.find("Maps with every ratio within 1.5: 1 of 2"), std::string::npos) << md;
+  // No least-squares+peaks rows: no table for them.
+  EXPECT_EQ(md.find("With peaks, against the optimum"), std::string::npos) << md;
+}
+
+// sg+peaks is compared with the optimum on its own basis (its peaks, the SRBFs fitted to what the
+// detector leaves), in a second table beside the first; the plain rows keep theirs.
+TEST(BenchLight, ReportComparesSgWithPeaksWithTheOptimumOnItsBasis) {
+  ScratchDir scratch("bench_light_ls_peaks");
+  {
+    std::ofstream tsv(scratch.dir / "lighting.tsv");
+    tsv << "# odvr bench light on a test\n"
+           "map\twidth\tmethod\tdevice\tparam\tcoefficients\tms\trel_l2\tdiffuse\tglossy20\tglossy200\n"
+           "park\t2048\tleast-squares\tcpu\t5\t4093\t2400\t0.5\t0.002\t0.0020\t0.004\n"
+           "park\t2048\tleast-squares+peaks\tcpu\t5\t4094\t2000\t0.5\t0.001\t0.0010\t0.002\n"
+           "park\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0060\t0.006\n"
+           "park\t2048\tsg+peaks\tcpu\t5\t4093\t40\t0.5\t0.001\t0.0012\t0.002\n";
+  }
+  const auto run = RunOdvr("bench light --report-only --out " + scratch.dir.string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string md = ReadText(scratch.dir / "lighting.md");
+  const std::size_t with_peaks = md.find("With peaks, against the optimum");
+  ASSERT_NE(with_peaks, std::string::npos) << md;
+  // Before it, sg against least-squares: 0.5, 3.0, 1.5 and 2400 / 30 ms.
+  EXPECT_LT(md.find("| park | 0.50 | 3.00 | 1.50 | 80 |"), with_peaks) << md;
+  // After it, sg+peaks against least-squares+peaks: 1.0, 1.2, 1.0 and 2000 / 40 ms.
+  const std::size_t row = md.find("| park | 1.00 | 1.20 | 1.00 | 50 |");
+  EXPECT_NE(row, std::string::npos) << md;
+  EXPECT_GT(row, with_peaks) << md;
+  EXPECT_NE(md.find("Maps with every ratio within 1.5: 1 of 1", with_peaks), std::string::npos) << md;
 }
 
 }  // namespace
