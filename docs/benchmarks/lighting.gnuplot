@@ -8,9 +8,9 @@ set multiplot layout 1,2
 set title 'diffuse error against time (all maps, widths)'
 set xlabel 'ms'
 set ylabel 'diffuse error'
-plot 'lighting.tsv' using (strcol(3) eq 'sg' ? $7 : 1/0):9 with points title 'sg', 'lighting.tsv' using (strcol(3) eq 'sg+peaks' ? $7 : 1/0):9 with points title 'sg+peaks', 'lighting.tsv' using (strcol(3) eq 'least-squares' ? $7 : 1/0):9 with points title 'least-squares', 'lighting.tsv' using (strcol(3) eq 'sh' ? $7 : 1/0):9 with points title 'sh'
+plot 'lighting.tsv' using (strcol(3) eq 'sg' ? $7 : 1/0):9 with points title 'sg', 'lighting.tsv' using (strcol(3) eq 'sg+peaks' ? $7 : 1/0):9 with points title 'sg+peaks', 'lighting.tsv' using (strcol(3) eq 'least-squares' ? $7 : 1/0):9 with points title 'least-squares', 'lighting.tsv' using (strcol(3) eq 'least-squares+peaks' ? $7 : 1/0):9 with points title 'least-squares+peaks', 'lighting.tsv' using (strcol(3) eq 'sh' ? $7 : 1/0):9 with points title 'sh'
 set title 'glossy200 error against time (all maps, widths)'
 set xlabel 'ms'
 set ylabel 'glossy200 error'
-plot 'lighting.tsv' using (strcol(3) eq 'sg' ? $7 : 1/0):11 with points title 'sg', 'lighting.tsv' using (strcol(3) eq 'sg+peaks' ? $7 : 1/0):11 with points title 'sg+peaks', 'lighting.tsv' using (strcol(3) eq 'least-squares' ? $7 : 1/0):11 with points title 'least-squares', 'lighting.tsv' using (strcol(3) eq 'sh' ? $7 : 1/0):11 with points title 'sh'
+plot 'lighting.tsv' using (strcol(3) eq 'sg' ? $7 : 1/0):11 with points title 'sg', 'lighting.tsv' using (strcol(3) eq 'sg+peaks' ? $7 : 1/0):11 with points title 'sg+peaks', 'lighting.tsv' using (strcol(3) eq 'least-squares' ? $7 : 1/0):11 with points title 'least-squares', 'lighting.tsv' using (strcol(3) eq 'least-squares+peaks' ? $7 : 1/0):11 with points title 'least-squares+peaks', 'lighting.tsv' using (strcol(3) eq 'sh' ? $7 : 1/0):11 with points title 'sh'
 unset multiplot
