@@ -15,32 +15,38 @@ using odvr::testing::ReadText;
 using odvr::testing::RunOdvr;
 using odvr::testing::ScratchDir;
 
-TEST(BenchLight, ReportPicksTheCheapestSgWithPeaksThatBeatsSh8OfTheSameWidth) {
-  ScratchDir scratch("bench_light");
-  {
-    std::ofstream tsv(scratch.dir / "lighting.tsv");
-    tsv << "# odvr bench light on a test\n"
-           "map\twidth\tmethod\tdevice\tparam\tcoefficients\tms\trel_l2\tdiffuse\tglossy20\tglossy200\n"
-           // sky: level 1 fails on diffuse; level 2 beats SH 8 at 1024 and is faster; 2048 slower.
-           "sky\t1024\tsh\tcpu\t8\t81\t3.0\t0.9\t0.010\t0.10\t0.80\n"
-           "sky\t1024\tsg+peaks\tcpu\t1\t14\t2.0\t0.5\t0.020\t0.05\t0.05\n"
-           "sky\t1024\tsg+peaks\tcpu\t2\t62\t2.5\t0.5\t0.005\t0.02\t0.03\n"
-           "sky\t1024\tsg+peaks\tcpu\t3\t254\t4.0\t0.5\t0.002\t0.01\t0.02\n"
-           "sky\t2048\tsh\tcpu\t8\t81\t5.0\t0.9\t0.010\t0.10\t0.80\n"
-           "sky\t2048\tsg+peaks\tcpu\t2\t62\t6.0\t0.5\t0.005\t0.02\t0.03\n"
-           // park: beats SH 8 only at 5 levels, slower than it. An SH 8 row of another width, far
-           // worse, must not be compared with.
-           "park\t1024\tsh\tcpu\t8\t81\t2.0\t0.9\t0.010\t0.10\t0.80\n"
-           "park\t512\tsh\tcpu\t8\t81\t0.5\t0.9\t0.900\t0.90\t0.90\n"
-           "park\t1024\tsg+peaks\tcpu\t4\t1024\t5.0\t0.5\t0.020\t0.01\t0.01\n"
-           "park\t1024\tsg+peaks\tcpu\t5\t4094\t9.0\t0.5\t0.005\t0.01\t0.01\n"
-           // dawn: never beats SH 8.
-           "dawn\t1024\tsh\tcpu\t8\t81\t2.0\t0.9\t0.001\t0.01\t0.10\n"
-           "dawn\t1024\tsg+peaks\tcpu\t5\t4090\t9.0\t0.5\t0.002\t0.005\t0.05\n";
-  }
+const char* kHeader =
+    "# odvr bench light on a test\n"
+    "map\twidth\tmethod\tdevice\tparam\tcoefficients\tms\trel_l2\tdiffuse\tglossy20\tglossy200\n";
+
+// `odvr bench light --report-only` on these TSV rows (after the header); the lighting.md it writes.
+std::string ReportFrom(const std::string& name, const std::string& rows) {
+  ScratchDir scratch(name);
+  std::ofstream(scratch.dir / "lighting.tsv") << kHeader << rows;
   const auto run = RunOdvr("bench light --report-only --out " + scratch.dir.string());
-  ASSERT_EQ(run.exit_code, 0) << run.err;
-  const std::string md = ReadText(scratch.dir / "lighting.md");
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  return ReadText(scratch.dir / "lighting.md");
+}
+
+TEST(BenchLight, ReportPicksTheCheapestSgWithPeaksThatBeatsSh8OfTheSameWidth) {
+  const std::string md =
+      ReportFrom("bench_light",
+                 // sky: level 1 fails on diffuse; level 2 beats SH 8 at 1024 and is faster; 2048 slower.
+                 "sky\t1024\tsh\tcpu\t8\t81\t3.0\t0.9\t0.010\t0.10\t0.80\n"
+                 "sky\t1024\tsg+peaks\tcpu\t1\t14\t2.0\t0.5\t0.020\t0.05\t0.05\n"
+                 "sky\t1024\tsg+peaks\tcpu\t2\t62\t2.5\t0.5\t0.005\t0.02\t0.03\n"
+                 "sky\t1024\tsg+peaks\tcpu\t3\t254\t4.0\t0.5\t0.002\t0.01\t0.02\n"
+                 "sky\t2048\tsh\tcpu\t8\t81\t5.0\t0.9\t0.010\t0.10\t0.80\n"
+                 "sky\t2048\tsg+peaks\tcpu\t2\t62\t6.0\t0.5\t0.005\t0.02\t0.03\n"
+                 // park: beats SH 8 only at 5 levels, slower than it. An SH 8 row of another width, far
+                 // worse, must not be compared with.
+                 "park\t1024\tsh\tcpu\t8\t81\t2.0\t0.9\t0.010\t0.10\t0.80\n"
+                 "park\t512\tsh\tcpu\t8\t81\t0.5\t0.9\t0.900\t0.90\t0.90\n"
+                 "park\t1024\tsg+peaks\tcpu\t4\t1024\t5.0\t0.5\t0.020\t0.01\t0.01\n"
+                 "park\t1024\tsg+peaks\tcpu\t5\t4094\t9.0\t0.5\t0.005\t0.01\t0.01\n"
+                 // dawn: never beats SH 8.
+                 "dawn\t1024\tsh\tcpu\t8\t81\t2.0\t0.9\t0.001\t0.01\t0.10\n"
+                 "dawn\t1024\tsg+peaks\tcpu\t5\t4090\t9.0\t0.5\t0.002\t0.005\t0.05\n");
   EXPECT_NE(md.find("| sky | 2 | 1024 | 0.0050 / 0.0100 | 0.0200 / 0.1000 | 0.0300 / 0.8000 | 2.50 / 3.00 | yes |"),
             std::string::npos)
       << md;
@@ -55,20 +61,12 @@ TEST(BenchLight, ReportPicksTheCheapestSgWithPeaksThatBeatsSh8OfTheSameWidth) {
 // got (a row of that width), not the one fitted to the sharper native map; an old TSV with only a
 // native row still gets a ratio from it.
 TEST(BenchLight, ReportComparesWithTheLeastSquaresFitOfTheSameWidth) {
-  ScratchDir scratch("bench_light_ls");
-  {
-    std::ofstream tsv(scratch.dir / "lighting.tsv");
-    tsv << "# odvr bench light on a test\n"
-           "map\twidth\tmethod\tdevice\tparam\tcoefficients\tms\trel_l2\tdiffuse\tglossy20\tglossy200\n"
-           "bridge\t2048\tleast-squares\tcpu\t5\t4093\t2400\t0.5\t0.002\t0.0020\t0.004\n"
-           "bridge\t512\tleast-squares\tcpu\t5\t4093\t2000\t0.5\t0.001\t0.0002\t0.003\n"
-           "bridge\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0030\t0.006\n"
-           "city\t512\tleast-squares\tcpu\t5\t4093\t1500\t0.5\t0.001\t0.0010\t0.002\n"
-           "city\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0010\t0.004\n";
-  }
-  const auto run = RunOdvr("bench light --report-only --out " + scratch.dir.string());
-  ASSERT_EQ(run.exit_code, 0) << run.err;
-  const std::string md = ReadText(scratch.dir / "lighting.md");
+  const std::string md = ReportFrom("bench_light_ls",
+                                    "bridge\t2048\tleast-squares\tcpu\t5\t4093\t2400\t0.5\t0.002\t0.0020\t0.004\n"
+                                    "bridge\t512\tleast-squares\tcpu\t5\t4093\t2000\t0.5\t0.001\t0.0002\t0.003\n"
+                                    "bridge\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0030\t0.006\n"
+                                    "city\t512\tleast-squares\tcpu\t5\t4093\t1500\t0.5\t0.001\t0.0010\t0.002\n"
+                                    "city\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0010\t0.004\n");
   EXPECT_NE(md.find("| bridge | 0.50 | 1.50 | 1.50 | 80 |"), std::string::npos) << md;
   EXPECT_NE(md.find("| city | 1.00 | 1.00 | 2.00 | 50 |"), std::string::npos) << md;
   EXPECT_NE(md.find("Maps with every ratio within 1.5: 1 of 2"), std::string::npos) << md;
@@ -79,19 +77,11 @@ TEST(BenchLight, ReportComparesWithTheLeastSquaresFitOfTheSameWidth) {
 // sg+peaks is compared with the optimum on its own basis (its peaks, the SRBFs fitted to what the
 // detector leaves), in a second table beside the first; the plain rows keep theirs.
 TEST(BenchLight, ReportComparesSgWithPeaksWithTheOptimumOnItsBasis) {
-  ScratchDir scratch("bench_light_ls_peaks");
-  {
-    std::ofstream tsv(scratch.dir / "lighting.tsv");
-    tsv << "# odvr bench light on a test\n"
-           "map\twidth\tmethod\tdevice\tparam\tcoefficients\tms\trel_l2\tdiffuse\tglossy20\tglossy200\n"
-           "park\t2048\tleast-squares\tcpu\t5\t4093\t2400\t0.5\t0.002\t0.0020\t0.004\n"
-           "park\t2048\tleast-squares+peaks\tcpu\t5\t4094\t2000\t0.5\t0.001\t0.0010\t0.002\n"
-           "park\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0060\t0.006\n"
-           "park\t2048\tsg+peaks\tcpu\t5\t4093\t40\t0.5\t0.001\t0.0012\t0.002\n";
-  }
-  const auto run = RunOdvr("bench light --report-only --out " + scratch.dir.string());
-  ASSERT_EQ(run.exit_code, 0) << run.err;
-  const std::string md = ReadText(scratch.dir / "lighting.md");
+  const std::string md = ReportFrom("bench_light_ls_peaks",
+                                    "park\t2048\tleast-squares\tcpu\t5\t4093\t2400\t0.5\t0.002\t0.0020\t0.004\n"
+                                    "park\t2048\tleast-squares+peaks\tcpu\t5\t4094\t2000\t0.5\t0.001\t0.0010\t0.002\n"
+                                    "park\t2048\tsg\tcpu\t5\t4092\t30\t0.5\t0.001\t0.0060\t0.006\n"
+                                    "park\t2048\tsg+peaks\tcpu\t5\t4093\t40\t0.5\t0.001\t0.0012\t0.002\n");
   const std::size_t with_peaks = md.find("With peaks, against the optimum");
   ASSERT_NE(with_peaks, std::string::npos) << md;
   // Before it, sg against least-squares: 0.5, 3.0, 1.5 and 2400 / 30 ms.
