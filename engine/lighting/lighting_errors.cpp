@@ -52,6 +52,20 @@ std::vector<glm::dvec3> Convolve(const sphere::EquirectImage& g, const std::vect
 
 double CosineKernel(double c) { return std::max(0.0, c); }
 
+// The clamped cosine max(0, n·ω) averaged over a narrow lobe (σ = 1/√λ) whose axis lies at
+// height h = n·a above the horizon: on the lobe's tangent plane n·ω ≈ h + s·x, s = √(1 − h²),
+// x ~ N(0, σ²), so the mean is E[max(0, h + s·x)] = h Φ(h/sσ) + sσ φ(h/sσ). It is h for a
+// lobe well above the horizon and falls smoothly to 0 below it; max(0, h) dropped the half of
+// a lobe that straddles the horizon above it and added the half below: on apartment at 1024
+// wide that moved the model's diffuse convolution by 3e-4 relative to a numerical one, more
+// than the error it was judging.
+double ClampedHeight(double h, double lambda) {
+  const double s = std::sqrt(std::max(0.0, 1 - h * h)) / std::sqrt(lambda);
+  if (s <= 0) return std::max(0.0, h);
+  const double a = h / s;
+  return h * 0.5 * std::erfc(-a / std::sqrt(2.0)) + s * std::exp(-0.5 * a * a) / std::sqrt(2 * sphere::kPi);
+}
+
 }  // namespace
 
 Convolutions LightingErrorEvaluator::ConvolveImage(const sphere::EquirectImage& image,
@@ -135,7 +149,7 @@ Convolutions LightingErrorEvaluator::ConvolveModel(const SgLighting& model, cons
       // counted 0.27 % too bright, of the order of the diffuse errors compared (0.1–0.4 %).
       const double energy = Integral(Sg{g.axis, g.lambda, 1}) * (1 / std::tanh(g.lambda) - 1 / g.lambda);
       for (std::size_t i = 0; i < dirs.size(); ++i)
-        out.diffuse[i] += glm::dvec3(g.amplitude) * energy * std::max(0.0, glm::dot(dirs[i], g.axis));
+        out.diffuse[i] += glm::dvec3(g.amplitude) * energy * ClampedHeight(glm::dot(dirs[i], g.axis), g.lambda);
     }
   }
   const auto grid_conv = Convolve(grid, dirs, CosineKernel, 0.0);

@@ -10,8 +10,8 @@
 // 512×256 for λ = 200), but for pixels over 20× the mean (a sun), which are summed at their own
 // directions; conv(R) is exact for the SG kernels (closed-form SG products) and, for
 // the cosine, numerical for broad SGs and, for sharp ones (λ ≥ 300), the lobe's energy times its
-// mean cosine coth λ − 1/λ at its axis (the clamp at the horizon touches a lobe of σ ≤ 3.3° only
-// within a few degrees of it).
+// mean cosine coth λ − 1/λ times the clamped cosine averaged over the lobe (which differs from
+// max(0, n·axis) only within a few σ of the horizon, σ ≤ 3°).
 #include <functional>
 #include <glm/vec3.hpp>
 #include <vector>
