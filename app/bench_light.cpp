@@ -52,6 +52,7 @@ struct BenchLightOptions {
   bool report_only = false;
   int sweeps = lighting::ResidualTransformOptions{}.sweeps;
   int fine_sweeps = lighting::ResidualTransformOptions{}.fine_sweeps;
+  double fine_relaxation = lighting::ResidualTransformOptions{}.fine_relaxation;
   int base_width = lighting::ResidualTransformOptions{}.base_width;
   std::string normalization = "partition";
   double region_cutoff = lighting::ResidualTransformOptions{}.region_cutoff;
@@ -428,6 +429,7 @@ int RunBenchLight(BenchLightOptions o) {
             lo.transform.stop_threshold = 0;  // the bench measures each level count as asked
             lo.transform.sweeps = o.sweeps;
             lo.transform.fine_sweeps = o.fine_sweeps;
+            lo.transform.fine_relaxation = o.fine_relaxation;
             lo.transform.base_width = o.base_width;
             lo.transform.region_cutoff = o.region_cutoff;
             lo.transform.broad_region_cutoff = o.broad_region_cutoff;
@@ -482,6 +484,9 @@ CommandFn AddBenchLight(CLI::App* sub) {
       ->check(CLI::Range(1, 16));
   sub->add_option("--fine-sweeps", o->fine_sweeps, "Projection passes per level of λ >= 300 (levels 3-5)")
       ->check(CLI::Range(1, 16));
+  sub->add_option("--fine-relaxation", o->fine_relaxation,
+                  "Step of the refitting passes at levels 3-5 (1: plain; above 1 over-relaxes them)")
+      ->check(CLI::Range(0.05, 1.95));
   sub->add_option("--region-cutoff", o->region_cutoff, "An SRBF's cap: where its Gaussian exceeds this (levels 3-5)")
       ->check(CLI::Range(1e-9, 0.4));
   sub->add_option("--broad-region-cutoff", o->broad_region_cutoff, "The cap's cut-off of the levels 0-2")

@@ -24,6 +24,7 @@ struct LightOptions {
   double threshold = 0.01;
   int sweeps = lighting::ResidualTransformOptions{}.sweeps;
   int fine_sweeps = lighting::ResidualTransformOptions{}.fine_sweeps;
+  double fine_relaxation = lighting::ResidualTransformOptions{}.fine_relaxation;
   int base_width = lighting::ResidualTransformOptions{}.base_width;
   bool no_peaks = false;
   bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
@@ -47,6 +48,7 @@ int RunLight(const LightOptions& o) {
   options.transform.stop_threshold = o.threshold;
   options.transform.sweeps = o.sweeps;
   options.transform.fine_sweeps = o.fine_sweeps;
+  options.transform.fine_relaxation = o.fine_relaxation;
   options.transform.base_width = o.base_width;
   options.transform.exact_reconstruction = o.exact_reconstruction;
   options.detect_peaks = !o.no_peaks;
@@ -131,6 +133,9 @@ CommandFn AddLight(CLI::App* sub) {
       ->check(CLI::Range(1, 16));
   sub->add_option("--fine-sweeps", o->fine_sweeps, "Projection passes per level of λ >= 300, levels 3-5")
       ->check(CLI::Range(1, 16));
+  sub->add_option("--fine-relaxation", o->fine_relaxation,
+                  "Step of the refitting passes at levels 3-5 (1: plain; above 1 over-relaxes them)")
+      ->check(CLI::Range(0.05, 1.95));
   sub->add_option("--base-width", o->base_width, "Working-grid width of level 0, doubling per level")
       ->check(CLI::Range(8, 4096));
   sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,

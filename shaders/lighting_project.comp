@@ -4,7 +4,8 @@
 // invocation striding through the list and a shared-memory tree adding the partial sums.
 // w is G·dA or the partition weight G·dA/S and scale_c 1/Σ G·dA (divided by S̄_c for the
 // local-sum normalization), both from the CPU's LevelTables. uAccumulate adds the result to μ
-// (the refit sweeps: μ += projection of what the level left).
+// (the refit sweeps: μ += uStep · projection of what the level left; uStep over-relaxes them at
+// the fine levels, see ResidualTransformOptions::fine_relaxation).
 // GROUP_SIZE is set by the host per device (a power of two): see residual_transform_gpu.cpp.
 #ifndef GROUP_SIZE
 #define GROUP_SIZE 64
@@ -23,6 +24,7 @@ layout(std430, binding = 3) readonly buffer SrbfScale { float srbf_scale[]; };
 layout(std430, binding = 4) buffer Mu { vec4 mu[]; };
 
 uniform int uAccumulate;
+uniform float uStep;
 
 shared vec3 s_partial[GROUP_SIZE];
 
@@ -42,6 +44,6 @@ void main() {
   }
   if (tid == 0u) {
     vec3 m = s_partial[0] * srbf_scale[c];
-    mu[c] = vec4(uAccumulate != 0 ? mu[c].rgb + m : m, 0.0);
+    mu[c] = vec4(uAccumulate != 0 ? mu[c].rgb + uStep * m : m, 0.0);
   }
 }

@@ -268,6 +268,7 @@ void ResidualTransformOptions::Check() const {
   if (!(keep_threshold >= 0)) throw Error("keep threshold", "must be >= 0");
   if (sweeps < 1 || sweeps > 16) throw Error("sweeps", "must be 1..16");
   if (fine_sweeps < 1 || fine_sweeps > 16) throw Error("fine sweeps", "must be 1..16");
+  if (!(fine_relaxation > 0 && fine_relaxation < 2)) throw Error("fine relaxation", "must be in (0, 2)");
   if (base_width < 8 || base_width > 4096) throw Error("base width", "must be 8..4096");
   if (!(region_cutoff > 0 && region_cutoff < 0.5)) throw Error("region cutoff", "must be in (0, 0.5)");
   if (!(broad_region_cutoff > 0 && broad_region_cutoff < 0.5))
@@ -280,6 +281,10 @@ constexpr int kBroadLevels = 3;  // levels 0–2: λ = 5.5, 22.6, 91.5 (level 3:
 
 int SweepsOf(const ResidualTransformOptions& options, int level) {
   return level < kBroadLevels ? options.sweeps : options.fine_sweeps;
+}
+
+float RelaxationOf(const ResidualTransformOptions& options, int level) {
+  return level < kBroadLevels ? 1.0f : static_cast<float>(options.fine_relaxation);
 }
 
 double RegionCutoffOf(const ResidualTransformOptions& options, int level) {
@@ -660,7 +665,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
     Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
       Project(t, remaining, options_.normalization, &delta, pool_.get());
-      for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += delta[c];
+      const float step = RelaxationOf(options_, s);
+      for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += step * delta[c];
       Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     }
     // Model only what the frame needs: drop negligible SRBFs.

@@ -213,13 +213,13 @@ void ResidualTransformGpu::Reconstruct(const Tables* tables, const gl::Buffer& m
 }
 
 void ResidualTransformGpu::Project(const Tables& tables, const gl::Buffer& residue, const gl::Buffer& mu,
-                                   bool accumulate) {
+                                   bool accumulate, float step) {
   Bind(residue, 0);
   Bind(tables.srbf_begin, 1);
   Bind(tables.srbf_entries, 2);
   Bind(tables.srbf_scale, 3);
   Bind(mu, 4);
-  project_.Set("uAccumulate", accumulate ? 1 : 0).Use();
+  project_.Set("uAccumulate", accumulate ? 1 : 0).Set("uStep", step).Use();
   glDispatchCompute(static_cast<GLuint>(tables.srbfs), 1, 1);
   StorageBarrier();
 }
@@ -342,7 +342,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     Project(t, residue_, mu_[mu], false);
     Reconstruct(&t, mu_[mu], residue_, remaining_, -1.f, grid, false, false);
     for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
-      Project(t, remaining_, mu_[mu], true);
+      Project(t, remaining_, mu_[mu], true, RelaxationOf(options_, s));
       Reconstruct(&t, mu_[mu], residue_, remaining_, -1.f, grid, false, false);
     }
     glClearNamedBufferData(flags_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);

@@ -49,7 +49,8 @@ class ResidualTransformGpu {
   const Tables& TablesFor(int level, int width, int height, bool projection);
   // Sums of `image` over the sphere into slot `slot` of totals_ (no readback).
   void Sums(const gl::Buffer& image, const Grid& grid, int slot);
-  void Project(const Tables& tables, const gl::Buffer& residue, const gl::Buffer& mu, bool accumulate);
+  void Project(const Tables& tables, const gl::Buffer& residue, const gl::Buffer& mu, bool accumulate,
+               float step = 1.f);
   // out = base + sign·Σ μ G (tables == nullptr: nothing added); see lighting_reconstruct.comp.
   void Reconstruct(const Tables* tables, const gl::Buffer& mu, const gl::Buffer& base, const gl::Buffer& out,
                    float sign, const Grid& grid, bool write_residue, bool only_if_dropped);
