@@ -57,10 +57,11 @@ struct ResidualTransformOptions {
   int fine_sweeps = 3;
   // The step of those refits at the fine levels: μ += ω · projection(r − L_s)/S̄. The
   // partition-weighted projection of a level's own reconstruction shrinks it (the iteration
-  // converged for every ω up to 1.9 over 16 passes on hall and bridge), so over-relaxing moves
-  // faster towards the same fit: on the 18 maps at 2048 wide, three passes at ω = 1.7 left every
-  // glossy-200 ratio to the least-squares optimum at or below four passes at ω = 1 (bridge 1.48 →
-  // 1.23, forest 1.30 → 1.18; none above by more than 0.04), for one pass less per fine level.
+  // converged for every ω up to 1.9 over 16 passes on hall and bridge at 1024 wide), so
+  // over-relaxing moves faster towards the same fit: on the 18 maps at 2048 wide with peaks, three
+  // passes at ω = 1.7 left each glossy-200 ratio to the least-squares optimum below or within 0.03
+  // of four passes at ω = 1 (bridge 1.48 → 1.23, forest 1.30 → 1.18 in `odvr bench light`), the
+  // glossy-20 ratios within 0.05, for one pass less per fine level.
   double fine_relaxation = 1.7;
   // Working width of level s: base_width·2^s (at least 64, at most the input's). 32 puts level 4
   // (σ = 1.5°) on a 512-wide grid, two pixels per σ: `odvr bench light --base-width 32|64` on
