@@ -2,6 +2,7 @@
 // A small persistent thread pool for data-parallel loops (the lighting transform runs a few
 // of them per level, per frame: spawning threads each time would cost more than the work).
 // Each index is processed by exactly one thread, so per-index results are deterministic.
+#include <atomic>
 #include <condition_variable>
 #include <functional>
 #include <mutex>
@@ -23,14 +24,18 @@ class ThreadPool {
 
  private:
   void WorkerLoop();
+  void RunChunks(std::unique_lock<std::mutex>& lock);
   std::vector<std::thread> workers_;
   std::mutex mutex_;
   std::condition_variable start_, done_;
   const std::function<void(long, long)>* body_ = nullptr;
   long n_ = 0, next_ = 0, chunk_ = 1;
-  int active_ = 0;
-  long generation_ = 0;
-  bool stop_ = false;
+  // Written under mutex_; atomic so that spinning threads can watch them without it.
+  std::atomic<long> generation_{0};
+  std::atomic<int> active_{0};
+  std::atomic<bool> stop_{false};
+  int sleeping_ = 0;  // workers blocked on start_ (under mutex_)
+  bool caller_waiting_ = false;
 };
 
 }  // namespace odvr

@@ -1,0 +1,89 @@
+#include "engine/core/parallel.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <numeric>
+#include <random>
+#include <thread>
+#include <vector>
+
+namespace odvr {
+namespace {
+
+// Counts how often each index of [0, n) was visited; plain ints, so a chunk that is not
+// finished (or not visible) when ParallelFor returns shows up as a wrong count.
+std::vector<int> Visit(ThreadPool& pool, long n, long min_chunk) {
+  std::vector<int> visits(static_cast<std::size_t>(n), 0);
+  pool.ParallelFor(
+      n,
+      [&](long begin, long end) {
+        for (long i = begin; i < end; ++i) ++visits[static_cast<std::size_t>(i)];
+      },
+      min_chunk);
+  return visits;
+}
+
+bool EachOnce(const std::vector<int>& visits) {
+  for (const int v : visits)
+    if (v != 1) return false;
+  return true;
+}
+
+TEST(Parallel, BackToBackLoopsVisitEveryIndexExactlyOnce) {
+  // Loops following each other within the workers' spin (the transform's pattern), of sizes
+  // below, at and above a chunk, on more threads than cores too.
+  for (const int threads : {1, 2, 5}) {
+    ThreadPool pool(threads);
+    std::mt19937 rng(7);
+    int wrong = 0;
+    for (int call = 0; call < 3000; ++call) {
+      const long n = std::uniform_int_distribution<long>(1, 4000)(rng);
+      const long min_chunk = std::uniform_int_distribution<long>(1, 300)(rng);
+      if (!EachOnce(Visit(pool, n, min_chunk))) ++wrong;
+    }
+    EXPECT_EQ(wrong, 0) << threads << " threads";
+  }
+}
+
+TEST(Parallel, WorkersThatFellAsleepAreWokenForTheNextLoop) {
+  ThreadPool pool(3);
+  for (int call = 0; call < 5; ++call) {
+    // Longer than a worker spins before it blocks.
+    std::this_thread::sleep_for(std::chrono::milliseconds(3));
+    const std::vector<int> visits = Visit(pool, 100000, 16);
+    EXPECT_TRUE(EachOnce(visits));
+  }
+}
+
+TEST(Parallel, EveryThreadTakesPartInALongLoop) {
+  ThreadPool pool(2);
+  std::vector<std::thread::id> owner(64);
+  pool.ParallelFor(
+      64,
+      [&](long begin, long end) {
+        // Long enough per chunk that the caller cannot take every chunk before the worker wakes.
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        for (long i = begin; i < end; ++i) owner[static_cast<std::size_t>(i)] = std::this_thread::get_id();
+      },
+      4);
+  int by_caller = 0;
+  for (const auto& id : owner) by_caller += id == std::this_thread::get_id();
+  EXPECT_GT(by_caller, 0);
+  EXPECT_LT(by_caller, 64);
+}
+
+TEST(Parallel, DestroyedWhileItsWorkersSpinOrSleep) {
+  for (const int idle_ms : {0, 5}) {
+    const auto start = std::chrono::steady_clock::now();
+    {
+      ThreadPool pool(4);
+      EXPECT_TRUE(EachOnce(Visit(pool, 10000, 8)));
+      std::this_thread::sleep_for(std::chrono::milliseconds(idle_ms));
+    }
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2)) << idle_ms;
+  }
+}
+
+}  // namespace
+}  // namespace odvr
