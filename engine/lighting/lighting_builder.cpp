@@ -54,7 +54,8 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
     // copied nor read again (a frame wider than the peak grid by an integer factor is
     // box-averaged to it in that pass too). Otherwise the resampled frame, ours, becomes the residue.
     if (factor > 1)
-      r.peak_detection = DetectPeaksToCoarseGrid(*source, factor, options_.peaks, frame_factor, &peak_grid_);
+      r.peak_detection =
+          DetectPeaksToCoarseGrid(*source, factor, options_.peaks, frame_factor, &peak_grid_, transform_.pool());
     else
       r.peak_detection =
           source == &small ? DetectPeaks(std::move(small), options_.peaks) : DetectPeaks(frame, options_.peaks);

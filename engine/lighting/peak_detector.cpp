@@ -6,9 +6,11 @@
 #include <chrono>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <numeric>
 
 #include "engine/core/error.h"
 #include "engine/core/float4.h"
+#include "engine/core/parallel.h"
 #include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 
@@ -85,31 +87,33 @@ void Load12(const float* in, V4* a, V4* b, V4* c) {
 //
 // With `source`, `frame` is written first, row by row, as `source` box-averaged by
 // `source_factor` (DownsampleBox's result bit for bit), each row scanned while in cache.
-FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da, int block, int coarse_factor = 1,
-               sphere::EquirectImage* coarse = nullptr, const sphere::EquirectImage* source = nullptr,
-               int source_factor = 1) {
-  FrameScan s;
+// Three 4-wide vectors hold four RGB pixels: lane j (0..11) holds channel j % 3. GCC's
+// vector extension keeps them in registers; plain arrays of 12 lanes, vectorized by -O2, went
+// through the stack on every pixel.
+constexpr int kLanes = 12;
+
+// What the rows of one band add to the scan: their share of the mean and the lane-wise minima.
+struct BandScan {
+  double mean = 0;
+  V4 lo0{}, lo1{}, lo2{};
+};
+
+// Rows [row0, row1) of the scan below: a whole number of candidate blocks and coarse cells, so
+// bands write disjoint parts of s->block_max, the coarse grid and (from `source`) the frame.
+BandScan ScanRows(const sphere::EquirectImage& frame, const std::vector<double>& da, int row0, int row1, FrameScan* s,
+                  int coarse_factor, sphere::EquirectImage* coarse, const sphere::EquirectImage* source,
+                  int source_factor) {
+  const int w = frame.width, block = s->block;
   std::vector<float> column;
-  if (coarse) {
-    *coarse = sphere::EquirectImage(frame.width / coarse_factor, frame.height / coarse_factor);
-    column.assign(3 * static_cast<std::size_t>(frame.width), 0.f);
-  }
-  const int w = frame.width, h = frame.height;
-  s.block = block;
-  s.blocks_wide = (w + block - 1) / block;
-  s.blocks_high = (h + block - 1) / block;
-  s.block_max.assign(static_cast<std::size_t>(s.blocks_wide) * static_cast<std::size_t>(s.blocks_high), 0.f);
-  // Three 4-wide vectors hold four RGB pixels: lane j (0..11) holds channel j % 3. GCC's
-  // vector extension keeps them in registers; plain arrays of 12 lanes, vectorized by -O2, went
-  // through the stack on every pixel.
-  constexpr int kLanes = 12;
+  if (coarse) column.assign(3 * static_cast<std::size_t>(w), 0.f);
   // Lane-wise minima and sums live across blocks and are reduced once per row (sums) or per
-  // frame (minima): a per-block reduction into scalars was a chain of dependent loads and stores
+  // band (minima): a per-block reduction into scalars was a chain of dependent loads and stores
   // that took as long as the block's pixels (perf annotate, 1024 wide).
+  BandScan band;
   V4 lo0{}, lo1{}, lo2{};
   std::vector<float> source_column;
   if (source) source_column.resize(3 * static_cast<std::size_t>(source->width));
-  for (int row = 0; row < h; ++row) {
+  for (int row = row0; row < row1; ++row) {
     if (source) {
       std::fill(source_column.begin(), source_column.end(), 0.f);
       for (int dy = 0; dy < source_factor; ++dy)
@@ -119,9 +123,9 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
     }
     // Sums in float across one row (a few hundred values per lane at most widths), then double.
     V4 sum0{}, sum1{}, sum2{}, more0{}, more1{}, more2{};
-    float* block_max = &s.block_max[static_cast<std::size_t>(row / block) * static_cast<std::size_t>(s.blocks_wide)];
+    float* block_max = &s->block_max[static_cast<std::size_t>(row / block) * static_cast<std::size_t>(s->blocks_wide)];
     const float* p = frame.at(0, row);
-    for (int bx = 0; bx < s.blocks_wide; ++bx) {
+    for (int bx = 0; bx < s->blocks_wide; ++bx) {
       const int n = 3 * std::min(block, w - bx * block);
       V4 hi0{}, hi1{}, hi2{};
       const auto take = [&](V4 a, V4 b, V4 c, V4& s0, V4& s1, V4& s2) {
@@ -170,7 +174,7 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
     Store12(sum, sum0 + more0, sum1 + more1, sum2 + more2);
     double channel_sum[3] = {0, 0, 0};
     for (int j = 0; j < kLanes; ++j) channel_sum[j % 3] += sum[j];
-    s.mean += Luminance(channel_sum) * da[static_cast<std::size_t>(row)];
+    band.mean += Luminance(channel_sum) * da[static_cast<std::size_t>(row)];
     if (coarse) {
       sphere::AddBoxRow(frame.at(0, row), w, column.data());
       if (row % coarse_factor == coarse_factor - 1) {
@@ -178,6 +182,46 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
         std::fill(column.begin(), column.end(), 0.f);
       }
     }
+  }
+  band.lo0 = lo0;
+  band.lo1 = lo1;
+  band.lo2 = lo2;
+  return band;
+}
+
+// One pass over the frame (see FrameScan), optionally making the frame from `source` (box-averaged
+// by source_factor, row by row) and the frame's box-average by coarse_factor. Bands of rows run on
+// `pool`; their sums are added in band order whatever the pool, so the result does not depend on it.
+FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da, int block, int coarse_factor = 1,
+               sphere::EquirectImage* coarse = nullptr, const sphere::EquirectImage* source = nullptr,
+               int source_factor = 1, ThreadPool* pool = nullptr) {
+  FrameScan s;
+  if (coarse) *coarse = sphere::EquirectImage(frame.width / coarse_factor, frame.height / coarse_factor);
+  const int w = frame.width, h = frame.height;
+  s.block = block;
+  s.blocks_wide = (w + block - 1) / block;
+  s.blocks_high = (h + block - 1) / block;
+  s.block_max.assign(static_cast<std::size_t>(s.blocks_wide) * static_cast<std::size_t>(s.blocks_high), 0.f);
+  const int unit = std::lcm(block, coarse ? coarse_factor : 1);
+  const int band_rows = unit * std::max(1, 64 / unit);
+  const int bands = (h + band_rows - 1) / band_rows;
+  std::vector<BandScan> results(static_cast<std::size_t>(bands));
+  const auto run = [&](long begin, long end) {
+    for (long b = begin; b < end; ++b)
+      results[static_cast<std::size_t>(b)] =
+          ScanRows(frame, da, static_cast<int>(b) * band_rows, std::min(h, static_cast<int>(b + 1) * band_rows), &s,
+                   coarse_factor, coarse, source, source_factor);
+  };
+  if (pool)
+    pool->ParallelFor(bands, run, 1);
+  else
+    run(0, bands);
+  V4 lo0{}, lo1{}, lo2{};
+  for (const BandScan& b : results) {
+    s.mean += b.mean;
+    lo0 = lo0 < b.lo0 ? lo0 : b.lo0;
+    lo1 = lo1 < b.lo1 ? lo1 : b.lo1;
+    lo2 = lo2 < b.lo2 ? lo2 : b.lo2;
   }
   s.mean /= 4 * sphere::kPi;
   float lo[kLanes], lowest = 0, highest = 0;
@@ -299,7 +343,7 @@ std::vector<double> SolidAngles(int w, int h) {
 // residue). Without `keep_residue` the residue is left empty unless the frame is LDR.
 PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
                      const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
-                     const sphere::EquirectImage* source = nullptr, int source_factor = 1);
+                     const sphere::EquirectImage* source = nullptr, int source_factor = 1, ThreadPool* pool = nullptr);
 
 // The coarse cells holding a peak's pixels, recomputed from the frame with those pixels at
 // min(I, b) (what the residue holds there) in DownsampleBox's order: `taken` lists (pixel, its
@@ -361,7 +405,7 @@ PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptio
 
 PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int coarse_factor,
                                       const PeakDetectorOptions& options, int frame_factor,
-                                      sphere::EquirectImage* grid_storage) {
+                                      sphere::EquirectImage* grid_storage, ThreadPool* pool) {
   const auto start = std::chrono::steady_clock::now();
   if (frame_factor < 1 || frame.width % frame_factor || frame.height % frame_factor)
     throw Error("peak detection", "frame factor " + std::to_string(frame_factor) + " does not divide " +
@@ -370,28 +414,28 @@ PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int co
   if (coarse_factor < 2 || w % coarse_factor || h % coarse_factor)
     throw Error("peak detection", "coarse factor " + std::to_string(coarse_factor) + " does not divide " +
                                       std::to_string(w) + "x" + std::to_string(h));
-  if (frame_factor == 1) return Detect(frame, nullptr, false, options, start, coarse_factor);
+  if (frame_factor == 1) return Detect(frame, nullptr, false, options, start, coarse_factor, nullptr, 1, pool);
   sphere::EquirectImage local;
   sphere::EquirectImage& grid = grid_storage ? *grid_storage : local;
   // Filled by the scan. Kept by the caller across frames, its pages are not faulted in (and
   // given back) for every frame: at 2048 wide that was a millisecond of the build.
   if (grid.width != w || grid.height != h || grid.rgb.size() != 3 * static_cast<std::size_t>(w) * h)
     grid = sphere::EquirectImage(w, h);
-  return Detect(grid, &grid, false, options, start, coarse_factor, &frame, frame_factor);
+  return Detect(grid, &grid, false, options, start, coarse_factor, &frame, frame_factor, pool);
 }
 
 namespace {
 
 PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
                      const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
-                     const sphere::EquirectImage* source, int source_factor) {
+                     const sphere::EquirectImage* source, int source_factor, ThreadPool* pool) {
   options.Check();
   PeakDetection out;
   const int w = input.width, h = input.height;
   if (w < 4 || h < 2) throw Error("peak detection", "frame too small");
   const std::vector<double> da = SolidAngles(w, h);
   sphere::EquirectImage* coarse = coarse_factor > 1 ? &out.coarse : nullptr;
-  FrameScan scan = Scan(input, da, options.candidate_block, coarse_factor, coarse, source, source_factor);
+  FrameScan scan = Scan(input, da, options.candidate_block, coarse_factor, coarse, source, source_factor, pool);
   // One NaN would make the mean radiance NaN and cost the frame its sun; an Inf would set the
   // threshold to Inf. Bad pixels are 0 here, as they are in the transform.
   sphere::EquirectImage copy;
@@ -402,7 +446,7 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
     }
     const auto [bad, negative] = image::SanitizePixels(owned);
     spdlog::warn("peak detection input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
-    scan = Scan(*owned, da, options.candidate_block, coarse_factor, coarse);
+    scan = Scan(*owned, da, options.candidate_block, coarse_factor, coarse, nullptr, 1, pool);
   }
   const sphere::EquirectImage& frame = owned ? *owned : input;
   // The residue, when one is kept: the caller's image moved, or a copy of the frame.

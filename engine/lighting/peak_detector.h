@@ -28,6 +28,10 @@
 #include "engine/lighting/sg_lighting.h"
 #include "engine/sphere/equirect_image.h"
 
+namespace odvr {
+class ThreadPool;
+}
+
 namespace odvr::lighting {
 
 struct PeakDetectorOptions {
@@ -76,9 +80,10 @@ PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptio
 // are found on the frame box-averaged by it (DownsampleBox bit for bit), made row by row in the
 // same pass, into `grid_storage` when given (scratch a caller keeps across frames), and
 // `coarse_factor` applies to that grid.
+// The pass over the frame runs in bands of rows on `pool` when given (the same result).
 PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int coarse_factor,
                                       const PeakDetectorOptions& options = {}, int frame_factor = 1,
-                                      sphere::EquirectImage* grid_storage = nullptr);
+                                      sphere::EquirectImage* grid_storage = nullptr, ThreadPool* pool = nullptr);
 
 // The detector's connected components of bright pixels (HDR: luminance > threshold; LDR: every
 // channel >= threshold), each as ascending pixel indices row·width + col, found through the

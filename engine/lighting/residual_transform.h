@@ -155,6 +155,8 @@ class ResidualTransform {
   // Working grid of level s for an input of the given size.
   std::pair<int, int> GridOf(int level, int input_width, int input_height) const;
   const LevelTables& Tables(int level, int width, int height);
+  // The transform's threads, for the builder's other per-frame passes.
+  ThreadPool* pool() { return pool_.get(); }
 
  private:
   ResidualTransformOptions options_;

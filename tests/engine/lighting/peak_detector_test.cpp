@@ -12,6 +12,7 @@
 #include <set>
 
 #include "engine/core/error.h"
+#include "engine/core/parallel.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/lighting/lighting_errors.h"
@@ -143,6 +144,29 @@ TEST(PeakDetector, CoarseGridIsTheResiduesBoxAverageBitForBit) {
     }
   EXPECT_THROW(DetectPeaksToCoarseGrid(SkyMap(256, 128), 3), Error);
   EXPECT_THROW(DetectPeaksToCoarseGrid(SkyMap(256, 128), 2, {}, 3), Error);
+}
+
+TEST(PeakDetector, ThreadsChangeNothing) {
+  // The scan runs in bands of rows on the pool; its sums are added in band order either way.
+  // 720 rows: bands of 64 with a short last one; a NaN makes it scan the sanitized frame again.
+  ThreadPool pool(3);
+  for (const int frame_factor : {1, 2}) {
+    sphere::EquirectImage img = SkyMap(1440, 720);
+    AddDisc(&img, {0.5, 0.6, 0.3}, 0.02, 4000.f);
+    AddDisc(&img, {-0.3, -0.1, 0.9}, 0.04, 700.f);
+    img.at(1000, 333)[2] = std::nanf("");
+    const PeakDetection serial = DetectPeaksToCoarseGrid(img, 4, {}, frame_factor);
+    const PeakDetection threaded = DetectPeaksToCoarseGrid(img, 4, {}, frame_factor, nullptr, &pool);
+    ASSERT_EQ(serial.peaks.size(), 2u);
+    ASSERT_EQ(threaded.peaks.size(), serial.peaks.size());
+    EXPECT_EQ(threaded.threshold, serial.threshold);
+    for (std::size_t i = 0; i < serial.peaks.size(); ++i) {
+      EXPECT_EQ(threaded.peaks[i].energy, serial.peaks[i].energy);
+      EXPECT_EQ(threaded.peaks[i].sgs.front().amplitude, serial.peaks[i].sgs.front().amplitude);
+    }
+    ASSERT_EQ(threaded.coarse.rgb.size(), serial.coarse.rgb.size());
+    EXPECT_TRUE(threaded.coarse.rgb == serial.coarse.rgb) << "frame factor " << frame_factor;
+  }
 }
 
 TEST(PeakDetector, FrameBoxAveragedInTheScanIsTheDetectorOnTheDownsampledFrame) {
