@@ -41,6 +41,9 @@ struct BenchLightOptions {
   int only_levels = 0;  // 0: every level count up to max_levels
   bool skip_peaks = false;
   int repeats = 3;
+  // Timed runs continue past `repeats` until this much time has passed (at most kMaxRuns): with
+  // three runs, SH 8's median, the same work on every map, read 0.75–1.22 ms across the maps.
+  double min_time_ms = 100;
   bool gpu = false;
   bool least_squares = true;
   // SH projects an area-resampled copy of the same frame the SG model gets, at this width, and
@@ -60,6 +63,21 @@ struct BenchLightOptions {
   double keep_threshold = lighting::ResidualTransformOptions{}.keep_threshold;
   bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
 };
+
+constexpr int kMaxRuns = 500;
+
+// The ms of `run` over at least o.repeats calls, continued until o.min_time_ms have passed.
+template <class Run>
+std::vector<double> TimedRuns(const BenchLightOptions& o, Run run) {
+  std::vector<double> times;
+  double total = 0;
+  while (static_cast<int>(times.size()) < o.repeats ||
+         (total < o.min_time_ms && static_cast<int>(times.size()) < kMaxRuns)) {
+    times.push_back(run());
+    total += times.back();
+  }
+  return times;
+}
 
 struct Row {
   std::string map;
@@ -296,8 +314,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchLightOptions& o, const
      << "error against the native map (the enlargement blurs a sun: no model made from the frame does better); `sh` is "
         "spherical harmonics of that order, projected from the same "
      << "frame area-resampled to " << o.sh_width << " wide (the resampling is in its time). Time is the median of "
-     << o.repeats
-     << " runs on one frame, each a warm call as playback makes it every frame (one untimed call first builds "
+     << o.repeats << " or more runs (until " << o.min_time_ms << " ms have passed, at most " << kMaxRuns
+     << ") on one frame, each a warm call as playback makes it every frame (one untimed call first builds "
      << "the transform's overlap lists and the builder's scratch grid).\n\n"
      << "| width | method | device | levels/order | coefficients | ms | rel_l2 | diffuse | glossy20 | glossy200 |\n"
      << "|---|---|---|---|---|---|---|---|---|---|\n";
@@ -406,14 +424,15 @@ int RunBenchLight(BenchLightOptions o) {
       }
       // SH from the same frame the transform gets, resampled to its own grid inside the timing.
       for (int order : {2, 4, 8, 16}) {
-        std::vector<double> times;
         lighting::ShModel sh;
         const int sh_width = std::min(o.sh_width, frame.width);
-        for (int k = 0; k < o.repeats; ++k) {
+        const auto project = [&] {
           const auto t0 = std::chrono::steady_clock::now();
           sh = lighting::ProjectSphericalHarmonics(sphere::ResampleArea(frame, sh_width, sh_width / 2), order);
-          times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-        }
+          return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        };
+        project();  // warm-up, as the transform gets one
+        const std::vector<double> times = TimedRuns(o, project);
         const auto recon = sh.Reconstruct(native.width, native.height);
         const LightingErrors e =
             evaluator.Evaluate(lighting::LightingErrorEvaluator::ConvolveImage(recon, evaluator.directions()), recon);
@@ -442,12 +461,11 @@ int RunBenchLight(BenchLightOptions o) {
             lighting::LightingBuilder builder(lo);
             if (device == "gpu") gpu = std::make_unique<lighting::ResidualTransformGpu>(lo.transform);
             lighting::SgLighting model = builder.Build(frame, nullptr, gpu.get());  // warm-up: lists
-            std::vector<double> times;
-            for (int k = 0; k < o.repeats; ++k) {
+            const std::vector<double> times = TimedRuns(o, [&] {
               lighting::LightingReport report;
               model = builder.Build(frame, &report, device == "gpu" ? gpu.get() : nullptr);
-              times.push_back(report.total_ms);
-            }
+              return report.total_ms;
+            });
             rows.push_back({name, width, peaks ? "sg+peaks" : "sg", std::string(device), levels, model.sg_count(),
                             Median(times), evaluator.Evaluate(model)});
           }
@@ -473,6 +491,8 @@ CommandFn AddBenchLight(CLI::App* sub) {
                   "Run only this level count (and its least-squares fit): a quick check of one configuration")
       ->check(CLI::Range(1, 6));
   sub->add_flag("--skip-peaks", o->skip_peaks, "Leave out the sg+peaks rows");
+  sub->add_option("--min-time-ms", o->min_time_ms, "Time runs until this much time has passed (>= --repeats runs)")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--repeats", o->repeats, "Timed runs per configuration (the median is kept)")
       ->check(CLI::Range(1, 100));
   sub->add_flag("--gpu", o->gpu, "Also time the GPU path (needs an OpenGL 4.5 context)");
