@@ -41,7 +41,11 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
       frame_factor = frame.width / grid_w;
   }
   const int factor = options_.detect_peaks ? FusedFactor(grid_w, grid_h) : 1;
-  if (frame.width > options_.peak_grid_width && (factor == 1 || frame_factor == 1)) {
+  // Without peaks, a frame that box-averages evenly to the transform's finest grid goes to the
+  // transform whole: it derives the same grids from it, and its box pass runs on its threads
+  // (the single-threaded resample to the peak grid took 2 of 9.6 ms at 2048 wide, 5 levels).
+  const bool direct = !options_.detect_peaks && !gpu && frame_factor > 1 && FusedFactor(grid_w, grid_h) > 1;
+  if (frame.width > options_.peak_grid_width && !direct && (factor == 1 || frame_factor == 1)) {
     small = sphere::ResampleArea(frame, grid_w, grid_h);
     source = &small;
     frame_factor = 1;

@@ -13,6 +13,8 @@ struct LightingOptions {
   bool detect_peaks = true;
   // Peaks are found on the frame area-resampled to at most this width (energy is preserved; a
   // 1024-wide pixel is 0.35°, below a sun disc's 0.5°), and the transform starts from there.
+  // Without peaks (on the CPU) the transform takes a frame it can box-average evenly to its
+  // finest grid as it is: the same grids, one pass less.
   int peak_grid_width = 1024;
   // The detector box-averages the frame to the transform's finest working grid in its own pass
   // (same result: tests/engine/lighting/lighting_builder_test.cpp); false: the transform

@@ -283,5 +283,32 @@ TEST(LightingBuilder, FusedCoarseGridGivesTheSameModelAsResamplingTheResidue) {
   }
 }
 
+TEST(LightingBuilder, WideFrameWithoutPeaksGoesToTheTransformWhole) {
+  // The transform box-averages a 2048-wide frame to its 512-wide finest grid itself; through the
+  // 1024-wide peak grid first (fuse_coarse_grid off) the grids differ only by rounding.
+  sphere::EquirectImage img = SkyMap(2048, 1024);
+  AddDisc(&img, {0.5, 0.6, 0.3}, 0.01, 30000.f);
+  LightingOptions direct_options;
+  direct_options.detect_peaks = false;
+  direct_options.transform.stop_threshold = 0;
+  LightingOptions resampled_options = direct_options;
+  resampled_options.fuse_coarse_grid = false;
+  LightingReport dr, rr;
+  const SgLighting a = LightingBuilder(direct_options).Build(img, &dr);
+  const SgLighting b = LightingBuilder(resampled_options).Build(img, &rr);
+  EXPECT_EQ(dr.transform.levels.size(), 5u);
+  ASSERT_EQ(a.levels.size(), b.levels.size());
+  float largest = 0;
+  for (const auto& level : b.levels)
+    for (const auto& amplitude : level.amplitudes) largest = std::max({largest, std::abs(amplitude.x)});
+  for (std::size_t l = 0; l < a.levels.size(); ++l) {
+    ASSERT_EQ(a.levels[l].indices, b.levels[l].indices) << l;
+    for (std::size_t i = 0; i < a.levels[l].amplitudes.size(); ++i)
+      for (int k = 0; k < 3; ++k)
+        ASSERT_NEAR(a.levels[l].amplitudes[i][k], b.levels[l].amplitudes[i][k], 1e-5f * largest)
+            << "level " << l << " srbf " << i;
+  }
+}
+
 }  // namespace
 }  // namespace odvr::lighting
