@@ -184,6 +184,11 @@ int SweepsOf(const ResidualTransformOptions& options, int level);
 float RelaxationOf(const ResidualTransformOptions& options, int level);
 double RegionCutoffOf(const ResidualTransformOptions& options, int level);
 
+// The CPU passes run in 256-bit registers where the CPU has AVX2 (the build targets plain
+// x86-64), else in 128-bit ones, with the same sums in the same order. false forces the 128-bit
+// code, so that tests can hold the two to the same bits; returns whether AVX2 was in use.
+bool UseAvx2Passes(bool enable);
+
 // Builds the overlap lists of HEALPix `level` on a width×height grid.
 LevelTables BuildLevelTables(int level, int width, int height, double region_cutoff, ThreadPool* pool);
 

@@ -171,6 +171,26 @@ TEST(ResidualTransform, OverRelaxedFineSweepsReachTheFitOfMoreSweeps) {
   EXPECT_LT(near_two, 0.5 * relaxed);
 }
 
+TEST(ResidualTransform, Avx2PassesGiveTheSameBitsAsThe128BitOnes) {
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "this CPU has no AVX2: only the 128-bit passes run here";
+  sphere::EquirectImage frame = SkyMap(1024, 512);
+  AddDisc(&frame, {0.3, 0.8, -0.5}, 0.02, 20000.f);
+  ResidualTransformOptions options;
+  options.stop_threshold = 0;
+  ResidualTransform transform(options);
+  const SgLighting wide = transform.Run(frame);
+  EXPECT_TRUE(UseAvx2Passes(false));
+  const SgLighting narrow = transform.Run(frame);
+  EXPECT_FALSE(UseAvx2Passes(true));
+  ASSERT_EQ(wide.levels.size(), 5u);
+  ASSERT_EQ(narrow.levels.size(), wide.levels.size());
+  for (std::size_t l = 0; l < wide.levels.size(); ++l) {
+    ASSERT_EQ(narrow.levels[l].indices, wide.levels[l].indices);
+    for (std::size_t i = 0; i < wide.levels[l].amplitudes.size(); ++i)
+      ASSERT_EQ(narrow.levels[l].amplitudes[i], wide.levels[l].amplitudes[i]) << "level " << l << " srbf " << i;
+  }
+}
+
 TEST(ResidualTransform, PartitionProjectionConservesEnergyAtEveryLevel) {
   auto frame = SkyMap(128, 64);
   AddDisc(&frame, {-0.5, 0.5, 0.2}, 0.05, 500.f);
