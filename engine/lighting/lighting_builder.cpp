@@ -64,8 +64,8 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
       r.peak_detection =
           source == &small ? DetectPeaks(std::move(small), options_.peaks) : DetectPeaks(frame, options_.peaks);
     r.peaks_ms = r.peak_detection.ms;
-    const sphere::EquirectImage& start_grid = factor > 1 ? r.peak_detection.coarse : r.peak_detection.residue;
-    model = gpu ? gpu->Run(start_grid, &r.transform) : transform_.Run(start_grid, &r.transform);
+    sphere::EquirectImage& start_grid = factor > 1 ? r.peak_detection.coarse : r.peak_detection.residue;
+    model = gpu ? gpu->Run(start_grid, &r.transform) : transform_.Run(std::move(start_grid), &r.transform);
     for (const auto& p : r.peak_detection.peaks) model.peaks.insert(model.peaks.end(), p.sgs.begin(), p.sgs.end());
     r.peak_detection.residue = {};
     r.peak_detection.coarse = {};

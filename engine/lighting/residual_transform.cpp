@@ -652,6 +652,15 @@ const LevelTables& ResidualTransform::Tables(int level, int width, int height) {
 }
 
 SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformReport* report_out) {
+  return Run(input, nullptr, report_out);
+}
+
+SgLighting ResidualTransform::Run(sphere::EquirectImage&& input, TransformReport* report_out) {
+  return Run(input, &input, report_out);
+}
+
+SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::EquirectImage* owned,
+                                  TransformReport* report_out) {
   const auto start = Clock::now();
   CheckTransformInput(input.width, input.height);
   TransformReport report;
@@ -674,11 +683,21 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformR
       spdlog::warn("lighting input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
       source = &clean;
     }
-    grids.back() = sphere::ResampleArea(*source, finest_w, finest_h);
+    // The builder hands over the detector's grid, already the finest: taken, not copied.
+    if (!dirty && owned && input.width == finest_w && input.height == finest_h)
+      grids.back() = std::move(*owned);
+    else
+      grids.back() = sphere::ResampleArea(*source, finest_w, finest_h);
   }
   for (int s = levels - 2; s >= 0; --s) {
     const auto [w, h] = GridOf(s, input.width, input.height);
-    grids[static_cast<std::size_t>(s)] = sphere::ResampleArea(grids[static_cast<std::size_t>(s) + 1], w, h);
+    const sphere::EquirectImage& finer = grids[static_cast<std::size_t>(s) + 1];
+    sphere::EquirectImage& grid = grids[static_cast<std::size_t>(s)];
+    // Halving (the grids are 32·2^s wide) in row bands on the pool, DownsampleBox bit for bit.
+    const int factor = finer.width / w;
+    if (!(factor > 1 && finer.width == factor * w && finer.height == factor * h &&
+          DownsampleBoxIfClean(finer, factor, &grid, pool_.get())))
+      grid = sphere::ResampleArea(finer, w, h);
   }
   report.prepare_ms = MsSince(start);
 

@@ -150,6 +150,8 @@ class ResidualTransform {
   // `input` is linear RGB; NaN/Inf/negative pixels are treated as 0 (and counted in the log).
   // Throws odvr::Error for an input too small for the transform (< 8×4) or not about 2:1.
   SgLighting Run(const sphere::EquirectImage& input, TransformReport* report = nullptr);
+  // The same, free to take the input's storage as its finest working grid.
+  SgLighting Run(sphere::EquirectImage&& input, TransformReport* report = nullptr);
 
   const ResidualTransformOptions& options() const { return options_; }
   // Working grid of level s for an input of the given size.
@@ -159,6 +161,7 @@ class ResidualTransform {
   ThreadPool* pool() { return pool_.get(); }
 
  private:
+  SgLighting Run(const sphere::EquirectImage& input, sphere::EquirectImage* owned, TransformReport* report);
   ResidualTransformOptions options_;
   std::unique_ptr<ThreadPool> pool_;
   std::mutex mutex_;

@@ -191,6 +191,26 @@ TEST(ResidualTransform, Avx2PassesGiveTheSameBitsAsThe128BitOnes) {
   }
 }
 
+TEST(ResidualTransform, TakingTheInputAsTheFinestGridChangesNothing) {
+  // A 512-wide frame is level 4's grid: the rvalue overload takes its storage instead of copying.
+  sphere::EquirectImage frame = SkyMap(512, 256);
+  AddDisc(&frame, {-0.2, 0.4, 0.9}, 0.03, 5000.f);
+  ResidualTransformOptions options;
+  options.stop_threshold = 0;
+  ResidualTransform transform(options);
+  const SgLighting copied = transform.Run(frame);
+  sphere::EquirectImage moved_frame = frame;
+  const SgLighting moved = transform.Run(std::move(moved_frame));
+  ASSERT_EQ(copied.levels.size(), 5u);
+  ASSERT_EQ(moved.levels.size(), copied.levels.size());
+  EXPECT_EQ(moved.constant, copied.constant);
+  for (std::size_t l = 0; l < copied.levels.size(); ++l) {
+    ASSERT_EQ(moved.levels[l].indices, copied.levels[l].indices);
+    for (std::size_t i = 0; i < copied.levels[l].amplitudes.size(); ++i)
+      ASSERT_EQ(moved.levels[l].amplitudes[i], copied.levels[l].amplitudes[i]) << "level " << l << " srbf " << i;
+  }
+}
+
 TEST(ResidualTransform, PartitionProjectionConservesEnergyAtEveryLevel) {
   auto frame = SkyMap(128, 64);
   AddDisc(&frame, {-0.5, 0.5, 0.2}, 0.05, 500.f);
