@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <type_traits>
 
 #include "engine/core/error.h"
 #include "engine/core/float4.h"
@@ -84,10 +85,15 @@ D2 High2(V4 v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 2,
 // Σ r G dA over SRBF c's runs (the weights `w`, G·dA or its partition share), per channel.
 // Walks the runs (contiguous pixels and weights) four pixels at a time: the products G·dA·r in
 // float, summed in double in four lanes per channel instead of one chain (the entry-by-entry
-// walk was latency-bound on it), which moves μ by at most an ulp of float.
-glm::dvec3 WeightedSum(const LevelTables& t, const float* w, const float* r, long c) {
+// walk was latency-bound on it), which moves μ by at most an ulp of float. `kWide` holds the
+// twelve lanes in three 256-bit registers instead of six 128-bit ones: the same accumulators,
+// added in the same order (the same bits), in half the adds, for the AVX2 instantiation below
+// (the build targets plain x86-64).
+using D4 = double __attribute__((vector_size(32)));
+template <bool kWide>
+[[gnu::always_inline]] inline glm::dvec3 WeightedSumOf(const LevelTables& t, const float* w, const float* r, long c) {
   // Lanes of the 12 floats of four RGB pixels: (r g)(b r)(g b)(r g)(b r)(g b).
-  D2 lanes[6] = {};
+  std::conditional_t<kWide, D4[3], D2[6]> lanes = {};
   double acc[3] = {0, 0, 0};
   for (int k = t.srbf_run_begin[static_cast<std::size_t>(c)]; k < t.srbf_run_begin[static_cast<std::size_t>(c) + 1];
        ++k) {
@@ -97,15 +103,17 @@ glm::dvec3 WeightedSum(const LevelTables& t, const float* w, const float* r, lon
     int i = 0;
     for (; i + 4 <= run.length; i += 4) {
       const V4 w4 = Load4(wr + i);
-      const V4 a = Load4(p + 3 * i) * __builtin_shufflevector(w4, w4, 0, 0, 0, 1);
-      const V4 b = Load4(p + 3 * i + 4) * __builtin_shufflevector(w4, w4, 1, 1, 2, 2);
-      const V4 d = Load4(p + 3 * i + 8) * __builtin_shufflevector(w4, w4, 2, 3, 3, 3);
-      lanes[0] += Low2(a);
-      lanes[1] += High2(a);
-      lanes[2] += Low2(b);
-      lanes[3] += High2(b);
-      lanes[4] += Low2(d);
-      lanes[5] += High2(d);
+      const V4 products[3] = {Load4(p + 3 * i) * __builtin_shufflevector(w4, w4, 0, 0, 0, 1),
+                              Load4(p + 3 * i + 4) * __builtin_shufflevector(w4, w4, 1, 1, 2, 2),
+                              Load4(p + 3 * i + 8) * __builtin_shufflevector(w4, w4, 2, 3, 3, 3)};
+      for (int j = 0; j < 3; ++j) {
+        if constexpr (kWide) {
+          lanes[j] += __builtin_convertvector(products[j], D4);
+        } else {
+          lanes[2 * j] += Low2(products[j]);
+          lanes[2 * j + 1] += High2(products[j]);
+        }
+      }
     }
     for (; i < run.length; ++i) {
       acc[0] += wr[i] * p[3 * i];
@@ -113,41 +121,19 @@ glm::dvec3 WeightedSum(const LevelTables& t, const float* w, const float* r, lon
       acc[2] += wr[i] * p[3 * i + 2];
     }
   }
-  acc[0] += (lanes[0][0] + lanes[1][1]) + (lanes[3][0] + lanes[4][1]);
-  acc[1] += (lanes[0][1] + lanes[2][0]) + (lanes[3][1] + lanes[5][0]);
-  acc[2] += (lanes[1][0] + lanes[2][1]) + (lanes[4][0] + lanes[5][1]);
+  // Lane l of the twelve: channel l % 3.
+  const auto lane = [&](int l) { return kWide ? lanes[l / 4][l % 4] : lanes[l / 2][l % 2]; };
+  acc[0] += (lane(0) + lane(3)) + (lane(6) + lane(9));
+  acc[1] += (lane(1) + lane(4)) + (lane(7) + lane(10));
+  acc[2] += (lane(2) + lane(5)) + (lane(8) + lane(11));
   return {acc[0], acc[1], acc[2]};
 }
 
-// The same sums where the CPU has AVX2 (the build targets plain x86-64): each step's three
-// products widen to doubles four at a time, into three four-wide lanes that hold the same twelve
-// accumulators, added in the same order, so the sum is the same to the bit in half the adds.
-using D4 = double __attribute__((vector_size(32)));
+glm::dvec3 WeightedSum(const LevelTables& t, const float* w, const float* r, long c) {
+  return WeightedSumOf<false>(t, w, r, c);
+}
 [[gnu::target("avx2")]] glm::dvec3 WeightedSumAvx2(const LevelTables& t, const float* w, const float* r, long c) {
-  D4 lanes[3] = {};  // (r g b r)(g b r g)(b r g b)
-  double acc[3] = {0, 0, 0};
-  for (int k = t.srbf_run_begin[static_cast<std::size_t>(c)]; k < t.srbf_run_begin[static_cast<std::size_t>(c) + 1];
-       ++k) {
-    const LevelTables::SrbfRun& run = t.srbf_runs[static_cast<std::size_t>(k)];
-    const float* wr = w + run.entry;
-    const float* p = r + 3 * static_cast<std::size_t>(run.pixel);
-    int i = 0;
-    for (; i + 4 <= run.length; i += 4) {
-      const V4 w4 = Load4(wr + i);
-      lanes[0] += __builtin_convertvector(Load4(p + 3 * i) * __builtin_shufflevector(w4, w4, 0, 0, 0, 1), D4);
-      lanes[1] += __builtin_convertvector(Load4(p + 3 * i + 4) * __builtin_shufflevector(w4, w4, 1, 1, 2, 2), D4);
-      lanes[2] += __builtin_convertvector(Load4(p + 3 * i + 8) * __builtin_shufflevector(w4, w4, 2, 3, 3, 3), D4);
-    }
-    for (; i < run.length; ++i) {
-      acc[0] += wr[i] * p[3 * i];
-      acc[1] += wr[i] * p[3 * i + 1];
-      acc[2] += wr[i] * p[3 * i + 2];
-    }
-  }
-  acc[0] += (lanes[0][0] + lanes[0][3]) + (lanes[1][2] + lanes[2][1]);
-  acc[1] += (lanes[0][1] + lanes[1][0]) + (lanes[1][3] + lanes[2][2]);
-  acc[2] += (lanes[0][2] + lanes[1][1]) + (lanes[2][0] + lanes[2][3]);
-  return {acc[0], acc[1], acc[2]};
+  return WeightedSumOf<true>(t, w, r, c);
 }
 
 std::atomic<bool> use_avx2{__builtin_cpu_supports("avx2") != 0};
@@ -179,65 +165,46 @@ void Project(const LevelTables& t, const sphere::EquirectImage& residue, Normali
 // One row of Σ_c μ_c G_c into per-channel sums (`stride` floats apart, zeroed here): each of
 // the row's runs adds μ_c·G four pixels at a time (the by-pixel walk gathered μ and chained
 // every add on the last), SRBFs in the by-pixel lists' order, so every pixel's sum is the one
-// that walk made (the padding adds +0).
-void RowSums(const LevelTables& t, const std::vector<glm::vec3>& mu, long row, int stride, float* sums) {
+// that walk made (the padding adds +0). `kWide` takes two blocks at a time first, in 256-bit
+// registers for the AVX2 instantiation: each pixel gets the same adds in the same order.
+using V8 = float __attribute__((vector_size(32)));
+template <bool kWide>
+[[gnu::always_inline]] inline void RowSumsOf(const LevelTables& t, const std::vector<glm::vec3>& mu, long row,
+                                             int stride, float* sums) {
   std::fill(sums, sums + 3 * static_cast<std::size_t>(stride), 0.f);
   for (int k = t.row_run_begin[static_cast<std::size_t>(row)]; k < t.row_run_begin[static_cast<std::size_t>(row) + 1];
        ++k) {
     const LevelTables::RowRun& run = t.row_runs[static_cast<std::size_t>(k)];
     const glm::vec3 m = mu[static_cast<std::size_t>(run.srbf)];
     const float* g = t.row_g.data() + run.entry;
-    float* sr = sums + 4 * run.block;
-    float* sg = sr + stride;
-    float* sb = sg + stride;
-    const V4 mr = {m.x, m.x, m.x, m.x}, mg = {m.y, m.y, m.y, m.y}, mb = {m.z, m.z, m.z, m.z};
-    for (int i = 0; i < 4 * run.blocks; i += 4) {
+    float* channel[3] = {sums + 4 * run.block, sums + 4 * run.block + stride, sums + 4 * run.block + 2 * stride};
+    const int n = 4 * run.blocks;
+    int i = 0;
+    if constexpr (kWide) {
+      for (; i + 8 <= n; i += 8) {
+        V8 g8;
+        std::memcpy(&g8, g + i, sizeof g8);
+        for (int ch = 0; ch < 3; ++ch) {
+          V8 s8;
+          std::memcpy(&s8, channel[ch] + i, sizeof s8);
+          s8 += m[ch] * g8;
+          std::memcpy(channel[ch] + i, &s8, sizeof s8);
+        }
+      }
+    }
+    for (; i < n; i += 4) {
       const V4 g4 = Load4(g + i);
-      Store4(sr + i, Load4(sr + i) + mr * g4);
-      Store4(sg + i, Load4(sg + i) + mg * g4);
-      Store4(sb + i, Load4(sb + i) + mb * g4);
+      for (int ch = 0; ch < 3; ++ch) Store4(channel[ch] + i, Load4(channel[ch] + i) + m[ch] * g4);
     }
   }
 }
 
-// The same row where the CPU has AVX2: two blocks at a time in 256-bit registers, the run's odd
-// block in 128 bits; each pixel's sum gets the same adds in the same order (the same bits).
-using V8 = float __attribute__((vector_size(32)));
+void RowSums(const LevelTables& t, const std::vector<glm::vec3>& mu, long row, int stride, float* sums) {
+  RowSumsOf<false>(t, mu, row, stride, sums);
+}
 [[gnu::target("avx2")]] void RowSumsAvx2(const LevelTables& t, const std::vector<glm::vec3>& mu, long row, int stride,
                                          float* sums) {
-  std::fill(sums, sums + 3 * static_cast<std::size_t>(stride), 0.f);
-  for (int k = t.row_run_begin[static_cast<std::size_t>(row)]; k < t.row_run_begin[static_cast<std::size_t>(row) + 1];
-       ++k) {
-    const LevelTables::RowRun& run = t.row_runs[static_cast<std::size_t>(k)];
-    const glm::vec3 m = mu[static_cast<std::size_t>(run.srbf)];
-    const float* g = t.row_g.data() + run.entry;
-    float* sr = sums + 4 * run.block;
-    float* sg = sr + stride;
-    float* sb = sg + stride;
-    const V8 mr = {m.x, m.x, m.x, m.x, m.x, m.x, m.x, m.x}, mg = {m.y, m.y, m.y, m.y, m.y, m.y, m.y, m.y},
-             mb = {m.z, m.z, m.z, m.z, m.z, m.z, m.z, m.z};
-    const int n = 4 * run.blocks;
-    int i = 0;
-    for (; i + 8 <= n; i += 8) {
-      V8 g8, r8, g8s, b8;
-      std::memcpy(&g8, g + i, sizeof g8);
-      std::memcpy(&r8, sr + i, sizeof r8);
-      std::memcpy(&g8s, sg + i, sizeof g8s);
-      std::memcpy(&b8, sb + i, sizeof b8);
-      r8 += mr * g8;
-      g8s += mg * g8;
-      b8 += mb * g8;
-      std::memcpy(sr + i, &r8, sizeof r8);
-      std::memcpy(sg + i, &g8s, sizeof g8s);
-      std::memcpy(sb + i, &b8, sizeof b8);
-    }
-    if (i < n) {
-      const V4 g4 = Load4(g + i);
-      Store4(sr + i, Load4(sr + i) + V4{m.x, m.x, m.x, m.x} * g4);
-      Store4(sg + i, Load4(sg + i) + V4{m.y, m.y, m.y, m.y} * g4);
-      Store4(sb + i, Load4(sb + i) + V4{m.z, m.z, m.z, m.z} * g4);
-    }
-  }
+  RowSumsOf<true>(t, mu, row, stride, sums);
 }
 
 // out = base + sign · sums for one row of `width` RGB pixels, back to interleaved RGB four
