@@ -515,8 +515,8 @@ CommandFn AddBenchLight(CLI::App* sub) {
                   "Drop SRBFs whose largest |amplitude| is under this times the mean radiance")
       ->check(CLI::Range(0.0, 1.0));
   sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
-                "Evaluate every coarser level on each level's grid (default), or magnify the coarser grid's "
-                "reconstruction");
+                "Evaluate every coarser level on each level's grid, or magnify the coarser grid's reconstruction "
+                "(default)");
   sub->add_option("--normalization", o->normalization, "Amplitude normalization of the transform")
       ->check(CLI::IsMember({"none", "local-sum", "partition"}));
   sub->add_option("--base-width", o->base_width, "Working-grid width of level 0")->check(CLI::Range(8, 4096));

@@ -139,8 +139,8 @@ CommandFn AddLight(CLI::App* sub) {
   sub->add_option("--base-width", o->base_width, "Working-grid width of level 0, doubling per level")
       ->check(CLI::Range(8, 4096));
   sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
-                "Evaluate every coarser level on each level's grid (default; closer to least squares), or magnify "
-                "the coarser grid's reconstruction (faster)");
+                "Evaluate every coarser level on each level's grid, or magnify the coarser grid's reconstruction "
+                "through six samples per axis (default: as accurate, faster)");
   sub->add_flag("--no-peaks", o->no_peaks, "Do not take suns and lamps out as free-form SGs first");
   sub->add_option("--device", o->device, "Where the residual transform runs")->check(CLI::IsMember({"cpu", "gpu"}));
   sub->add_option("--out", o->out, "Write the lighting model (lighting.json)");

@@ -301,9 +301,16 @@ glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
   return sum / (4 * sphere::kPi);
 }
 
-sphere::EquirectImage Subtract(const sphere::EquirectImage& a, const sphere::EquirectImage& b) {
-  sphere::EquirectImage out = a;
-  for (std::size_t i = 0; i < out.rgb.size(); ++i) out.rgb[i] -= b.rgb[i];
+sphere::EquirectImage Subtract(const sphere::EquirectImage& a, const sphere::EquirectImage& b, ThreadPool* pool) {
+  sphere::EquirectImage out(a.width, a.height);
+  const std::size_t row = 3 * static_cast<std::size_t>(a.width);
+  pool->ParallelFor(
+      a.height,
+      [&](long begin, long end) {
+        for (std::size_t i = static_cast<std::size_t>(begin) * row; i < static_cast<std::size_t>(end) * row; ++i)
+          out.rgb[i] = a.rgb[i] - b.rgb[i];
+      },
+      16);
   return out;
 }
 
@@ -703,7 +710,11 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     if (s > 0 && !same_grid && !options_.exact_reconstruction) {
       // R_{<s} on this grid: the coarser reconstruction magnified plus the previous level
       // evaluated here (see exact_reconstruction).
-      recon = sphere::UpsampleBilinear(recon, w, h);
+      const int factor = w / recon.width;
+      const bool whole = w == factor * recon.width && h == factor * recon.height;
+      recon = whole && recon.width % 2 == 0 && recon.width >= 6 && recon.height >= 3
+                  ? sphere::MagnifyLagrange(recon, factor, pool_.get())
+                  : sphere::UpsampleBilinear(recon, w, h);
       Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, recon, &recon, pool_.get());
     }
     const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];
@@ -717,7 +728,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
       for (std::size_t l = 0; l < all_mu.size(); ++l) coarser.push_back(&Tables(static_cast<int>(l), w, h));
       ResidueOfCoarserLevels(coarser, all_mu, model.constant, target, &residue, pool_.get());
     } else {
-      residue = Subtract(target, recon);
+      residue = Subtract(target, recon, pool_.get());
     }
     const AbsAndSquareSums sums_before = SphereAbsAndSquareSums(residue, pool_.get());
     const double before = MeanAbsOf(sums_before) / report.mean_radiance;

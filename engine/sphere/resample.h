@@ -2,6 +2,10 @@
 // Resampling equirect images between the working resolutions of the lighting levels.
 #include "engine/sphere/equirect_image.h"
 
+namespace odvr {
+class ThreadPool;
+}
+
 namespace odvr::sphere {
 
 // Area-weighted resampling to any smaller size (separable box with fractional coverage):
@@ -10,5 +14,12 @@ EquirectImage ResampleArea(const EquirectImage& image, int width, int height);
 
 // Bilinear magnification with longitude wrap-around (the seam is continuous) and clamped rows.
 EquirectImage UpsampleBilinear(const EquirectImage& image, int width, int height);
+
+// Magnification by an integer factor, interpolating through the six nearest samples along each
+// axis (Lagrange, degree 5): longitude wraps around the seam, and the rows beyond a pole are those
+// next to it half a turn away (the width must be even, at least 6). A Gaussian of σ = 4.3 input
+// pixels (the finest in the lighting transform's magnified reconstructions) comes out within
+// 2.5e-5 of its peak, where the bilinear magnification is 9e-3 off (2.7e-2 at a pole).
+EquirectImage MagnifyLagrange(const EquirectImage& image, int factor, ThreadPool* pool = nullptr);
 
 }  // namespace odvr::sphere

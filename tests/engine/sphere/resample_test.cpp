@@ -1,14 +1,16 @@
 // Area resampling (the lighting levels' working grids, the peak detector's grid, SH's grid) and
-// bilinear magnification, against references computed here from their definitions.
+// bilinear and Lagrange magnification, against references computed here from their definitions.
 #include "engine/sphere/resample.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <random>
 
 #include "engine/core/error.h"
+#include "engine/sphere/equirect.h"
 
 namespace odvr::sphere {
 namespace {
@@ -94,6 +96,54 @@ TEST(Resample, BilinearMagnificationWrapsAroundTheSeam) {
     EXPECT_NEAR(out.at(15, y)[0], 0.75f, 1e-6);
     EXPECT_NEAR(out.at(8, y)[0], 0.f, 1e-6);
   }
+}
+
+// A spherical Gaussian of λ around `axis` sampled at each pixel centre of a w × h grid, with a
+// different amplitude per channel.
+EquirectImage SampledSg(const glm::dvec3& axis, double lambda, int w, int h) {
+  EquirectImage image(w, h);
+  for (int row = 0; row < h; ++row)
+    for (int col = 0; col < w; ++col) {
+      const double g = std::exp(lambda * (glm::dot(EquirectPixelDirection(col, row, w, h), axis) - 1));
+      for (int c = 0; c < 3; ++c) image.at(col, row)[c] = static_cast<float>(g * (1 + c));
+    }
+  return image;
+}
+
+double MaxAbsDifference(const EquirectImage& a, const EquirectImage& b) {
+  double worst = 0;
+  for (std::size_t k = 0; k < a.rgb.size(); ++k) worst = std::max(worst, std::abs(double(a.rgb[k]) - b.rgb[k]));
+  return worst;
+}
+
+TEST(Resample, LagrangeMagnificationFollowsAGaussianAcrossTheSeamAndOverThePoles) {
+  // The lighting transform magnifies its coarser levels' reconstruction by 2 at each level; the
+  // finest Gaussians in it have σ = 4.3 coarse pixels (level s−2 on level s−1's grid). Here
+  // λ = 5.5 (level 0's) on a 64 × 32 grid: σ = 24.4°, 4.3 pixels of 5.6°, magnified to 128 × 64
+  // and compared with the Gaussian sampled there, wherever its peak lies.
+  const double lambda = 5.5;
+  for (const glm::dvec3 axis : {glm::dvec3(1, 0, 0), glm::dvec3(-1, 0, 0.01), glm::dvec3(0.1, 1, 0),
+                                glm::dvec3(0, -1, 0.2), glm::normalize(glm::dvec3(-1, 0.5, 0))}) {
+    const glm::dvec3 a = glm::normalize(axis);
+    SCOPED_TRACE(testing::Message() << "axis " << a.x << " " << a.y << " " << a.z);
+    const EquirectImage coarse = SampledSg(a, lambda, 64, 32), fine = SampledSg(a, lambda, 128, 64);
+    // Peak amplitude 3 (the blue channel): 2e-5 of it, where the bilinear one is off by 8e-3.
+    const double lagrange = MaxAbsDifference(MagnifyLagrange(coarse, 2), fine);
+    const double bilinear = MaxAbsDifference(UpsampleBilinear(coarse, 128, 64), fine);
+    EXPECT_LT(lagrange, 3 * 3e-5);
+    EXPECT_GT(bilinear, 3 * 3e-3);
+    // By 4 as well: σ = 4.3 coarse pixels still.
+    EXPECT_LT(MaxAbsDifference(MagnifyLagrange(coarse, 4), SampledSg(a, lambda, 256, 128)), 3 * 3e-5);
+  }
+}
+
+TEST(Resample, LagrangeMagnificationKeepsAConstantAndRejectsOddWidths) {
+  const EquirectImage constant(16, 8, 2.5f);
+  for (const float v : MagnifyLagrange(constant, 3).rgb) ASSERT_NEAR(v, 2.5f, 2e-6);
+  EXPECT_EQ(MagnifyLagrange(constant, 1).rgb, constant.rgb);
+  EXPECT_THROW(MagnifyLagrange(EquirectImage(15, 8), 2), Error);
+  EXPECT_THROW(MagnifyLagrange(EquirectImage(4, 2), 2), Error);
+  EXPECT_THROW(MagnifyLagrange(constant, 0), Error);
 }
 
 }  // namespace
