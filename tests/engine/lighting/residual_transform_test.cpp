@@ -62,6 +62,32 @@ TEST(ResidualTransform, SmoothSkyStopsEarlyAndReconstructsWell) {
   EXPECT_LT(ev.Evaluate(m).diffuse, 0.01);
 }
 
+TEST(ResidualTransform, DroppedSrbfsGiveTheirShareBackToTheResidue) {
+  // A level that drops negligible SRBFs adds their terms back to what it leaves instead of
+  // evaluating itself again: the residue it reports must be that of the kept SRBFs alone. At
+  // level 0 (λ 5.5) every cap covers the whole sphere, so the model's own reconstruction on the
+  // level's 64 × 32 grid is the reference.
+  sphere::EquirectImage frame = SkyMap(128, 64);
+  AddDisc(&frame, {0.3, 0.6, -0.5}, 0.15, 40.f);
+  ResidualTransformOptions o;
+  o.levels = 1;
+  o.keep_threshold = 0.6;  // drops the SRBFs away from the sun and the sky's bright half
+  o.stop_threshold = 0;
+  TransformReport report;
+  const SgLighting model = ResidualTransform(o).Run(frame, &report);
+  ASSERT_EQ(report.levels.size(), 1u) << report.stop_reason;
+  const LevelReport& level = report.levels[0];
+  ASSERT_EQ(level.width, 64);
+  EXPECT_GT(level.srbfs_kept, 0);
+  EXPECT_LT(level.srbfs_kept, level.srbfs_total);
+  const sphere::EquirectImage target = sphere::ResampleArea(frame, 64, 32);
+  const sphere::EquirectImage recon = model.Reconstruct(64, 32);
+  sphere::EquirectImage left(64, 32);
+  for (std::size_t i = 0; i < left.rgb.size(); ++i) left.rgb[i] = target.rgb[i] - recon.rgb[i];
+  const double expected = MeanAbsRadiance(left) / MeanAbsRadiance(target);
+  EXPECT_NEAR(level.residue_after, expected, 1e-4 * expected);
+}
+
 TEST(ResidualTransform, NoErrorGrowsWhenALevelIsAddedEvenWithAnUntreatedSun) {
   // The trap of the issue: without peaks, eq. 4.17 as written overshoots the sun's energy. The
   // default (partition-of-unity) projection must make every convolved error fall level by level.
