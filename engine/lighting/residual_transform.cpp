@@ -741,11 +741,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     if (s > 0 && !same_grid && !options_.exact_reconstruction) {
       // R_{<s} on this grid: the coarser reconstruction magnified plus the previous level
       // evaluated here (see exact_reconstruction).
-      const int factor = w / recon.width;
-      const bool whole = w == factor * recon.width && h == factor * recon.height;
-      recon = whole && recon.width % 2 == 0 && recon.width >= 6 && recon.height >= 3
-                  ? sphere::MagnifyLagrange(recon, factor, pool_.get())
-                  : sphere::UpsampleBilinear(recon, w, h);
+      recon = sphere::MagnifyLagrange(recon, w, h, pool_.get());
       Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, recon, &recon, pool_.get());
     }
     const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];

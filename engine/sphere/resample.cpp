@@ -120,10 +120,6 @@ std::array<float, kLagrangeTaps> LagrangeWeights(double t) {
   return w;
 }
 
-}  // namespace
-
-namespace {
-
 struct LagrangePlan {
   int factor = 1;
   std::vector<int> offset;  // per phase
@@ -205,10 +201,12 @@ void MagnifyRowsPlain(const EquirectImage& image, const LagrangePlan& plan, long
 
 }  // namespace
 
-EquirectImage MagnifyLagrange(const EquirectImage& image, int factor, ThreadPool* pool) {
-  if (factor < 1) throw Error("resample", "magnification factor must be at least 1");
-  if (image.width % 2 != 0 || image.width < kLagrangeTaps || image.height < kLagrangeTaps / 2)
-    throw Error("resample", "magnification needs an even width of at least 6 and 3 rows");
+EquirectImage MagnifyLagrange(const EquirectImage& image, int width, int height, ThreadPool* pool) {
+  if (width < image.width || height < image.height) throw Error("resample", "magnification only enlarges");
+  const int factor = width / image.width;
+  if (width != factor * image.width || height != factor * image.height || image.width % 2 != 0 ||
+      image.width < kLagrangeTaps || image.height < kLagrangeTaps / 2)
+    return UpsampleBilinear(image, width, height);
   if (factor == 1) return image;
   // Output sample f·j + φ lies at input coordinate j + (φ + 0.5)/f − 0.5: its nodes start
   // kLagrangeLeft before j + offset[φ], with weights[φ], along either axis.

@@ -15,11 +15,13 @@ EquirectImage ResampleArea(const EquirectImage& image, int width, int height);
 // Bilinear magnification with longitude wrap-around (the seam is continuous) and clamped rows.
 EquirectImage UpsampleBilinear(const EquirectImage& image, int width, int height);
 
-// Magnification by an integer factor, interpolating through the six nearest samples along each
-// axis (Lagrange, degree 5): longitude wraps around the seam, and the rows beyond a pole are those
-// next to it half a turn away (the width must be even, at least 6). A Gaussian of σ = 4.3 input
-// pixels (the finest in the lighting transform's magnified reconstructions) comes out within
-// 2.5e-5 of its peak, where the bilinear magnification is 9e-3 off (2.7e-2 at a pole).
-EquirectImage MagnifyLagrange(const EquirectImage& image, int factor, ThreadPool* pool = nullptr);
+// Magnification to width × height, interpolating through the six nearest samples along each axis
+// (Lagrange, degree 5): longitude wraps around the seam, and the rows beyond a pole are those next
+// to it half a turn away. A Gaussian of σ = 4.3 input pixels (the finest in the lighting
+// transform's magnified reconstructions) comes out within 2.5e-5 of its peak, where the bilinear
+// magnification is 9e-3 off (2.7e-2 at a pole). Where the size is not an integer multiple of the
+// image's, or the image is narrower than 6 pixels, of odd width or under 3 rows, it is
+// UpsampleBilinear's (lighting_upsample.comp makes the same choice).
+EquirectImage MagnifyLagrange(const EquirectImage& image, int width, int height, ThreadPool* pool = nullptr);
 
 }  // namespace odvr::sphere

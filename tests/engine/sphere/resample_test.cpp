@@ -128,22 +128,26 @@ TEST(Resample, LagrangeMagnificationFollowsAGaussianAcrossTheSeamAndOverThePoles
     SCOPED_TRACE(testing::Message() << "axis " << a.x << " " << a.y << " " << a.z);
     const EquirectImage coarse = SampledSg(a, lambda, 64, 32), fine = SampledSg(a, lambda, 128, 64);
     // Peak amplitude 3 (the blue channel): 2e-5 of it, where the bilinear one is off by 8e-3.
-    const double lagrange = MaxAbsDifference(MagnifyLagrange(coarse, 2), fine);
+    const double lagrange = MaxAbsDifference(MagnifyLagrange(coarse, 128, 64), fine);
     const double bilinear = MaxAbsDifference(UpsampleBilinear(coarse, 128, 64), fine);
     EXPECT_LT(lagrange, 3 * 3e-5);
     EXPECT_GT(bilinear, 3 * 3e-3);
     // By 4 as well: σ = 4.3 coarse pixels still.
-    EXPECT_LT(MaxAbsDifference(MagnifyLagrange(coarse, 4), SampledSg(a, lambda, 256, 128)), 3 * 3e-5);
+    EXPECT_LT(MaxAbsDifference(MagnifyLagrange(coarse, 256, 128), SampledSg(a, lambda, 256, 128)), 3 * 3e-5);
   }
 }
 
-TEST(Resample, LagrangeMagnificationKeepsAConstantAndRejectsOddWidths) {
+TEST(Resample, LagrangeMagnificationKeepsAConstantAndFallsBackToBilinear) {
   const EquirectImage constant(16, 8, 2.5f);
-  for (const float v : MagnifyLagrange(constant, 3).rgb) ASSERT_NEAR(v, 2.5f, 2e-6);
-  EXPECT_EQ(MagnifyLagrange(constant, 1).rgb, constant.rgb);
-  EXPECT_THROW(MagnifyLagrange(EquirectImage(15, 8), 2), Error);
-  EXPECT_THROW(MagnifyLagrange(EquirectImage(4, 2), 2), Error);
-  EXPECT_THROW(MagnifyLagrange(constant, 0), Error);
+  for (const float v : MagnifyLagrange(constant, 48, 24).rgb) ASSERT_NEAR(v, 2.5f, 2e-6);
+  EXPECT_EQ(MagnifyLagrange(constant, 16, 8).rgb, constant.rgb);
+  // Sizes the six-sample stencil does not fit: the bilinear magnification, bit for bit.
+  const EquirectImage odd = SampledSg(glm::dvec3(1, 0, 0), 5.5, 15, 8),
+                      small = SampledSg(glm::dvec3(1, 0, 0), 5.5, 4, 2);
+  EXPECT_EQ(MagnifyLagrange(odd, 30, 16).rgb, UpsampleBilinear(odd, 30, 16).rgb);
+  EXPECT_EQ(MagnifyLagrange(small, 8, 4).rgb, UpsampleBilinear(small, 8, 4).rgb);
+  EXPECT_EQ(MagnifyLagrange(constant, 24, 12).rgb, UpsampleBilinear(constant, 24, 12).rgb);  // 1.5x
+  EXPECT_THROW(MagnifyLagrange(constant, 8, 4), Error);
 }
 
 }  // namespace
