@@ -62,6 +62,7 @@ struct BenchLightOptions {
   double broad_region_cutoff = lighting::ResidualTransformOptions{}.broad_region_cutoff;
   double keep_threshold = lighting::ResidualTransformOptions{}.keep_threshold;
   bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
+  bool no_coarse_correction = !lighting::ResidualTransformOptions{}.coarse_correction;
 };
 
 constexpr int kMaxRuns = 500;
@@ -454,6 +455,7 @@ int RunBenchLight(BenchLightOptions o) {
             lo.transform.broad_region_cutoff = o.broad_region_cutoff;
             lo.transform.keep_threshold = o.keep_threshold;
             lo.transform.exact_reconstruction = o.exact_reconstruction;
+            lo.transform.coarse_correction = !o.no_coarse_correction;
             lo.transform.normalization = o.normalization == "none"        ? lighting::Normalization::kNone
                                          : o.normalization == "local-sum" ? lighting::Normalization::kLocalSum
                                                                           : lighting::Normalization::kPartition;
@@ -514,6 +516,8 @@ CommandFn AddBenchLight(CLI::App* sub) {
   sub->add_option("--keep-threshold", o->keep_threshold,
                   "Drop SRBFs whose largest |amplitude| is under this times the mean radiance")
       ->check(CLI::Range(0.0, 1.0));
+  sub->add_flag("--no-coarse-correction", o->no_coarse_correction,
+                "Do not let the two levels below the finest refit what every level left");
   sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
                 "Evaluate every coarser level on each level's grid, or magnify the coarser grid's reconstruction "
                 "(default)");

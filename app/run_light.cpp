@@ -28,6 +28,7 @@ struct LightOptions {
   int base_width = lighting::ResidualTransformOptions{}.base_width;
   bool no_peaks = false;
   bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
+  bool no_coarse_correction = !lighting::ResidualTransformOptions{}.coarse_correction;
   std::string device = "cpu";
   std::string out;
   std::string preview;
@@ -51,6 +52,7 @@ int RunLight(const LightOptions& o) {
   options.transform.fine_relaxation = o.fine_relaxation;
   options.transform.base_width = o.base_width;
   options.transform.exact_reconstruction = o.exact_reconstruction;
+  options.transform.coarse_correction = !o.no_coarse_correction;
   options.detect_peaks = !o.no_peaks;
 
   // The GPU path needs a context for as long as the transform lives.
@@ -100,6 +102,7 @@ int RunLight(const LightOptions& o) {
                           {"constant", {model.constant.x, model.constant.y, model.constant.z}},
                           {"sg_count", model.sg_count()},
                           {"stop_reason", report.transform.stop_reason},
+                          {"correction_ms", report.transform.correction_ms},
                           {"total_ms", report.total_ms}};
     out.update(ErrorsJson(final_errors));
     std::cout << out.dump(2) << "\n";
@@ -138,6 +141,8 @@ CommandFn AddLight(CLI::App* sub) {
       ->check(CLI::Range(0.05, 1.95));
   sub->add_option("--base-width", o->base_width, "Working-grid width of level 0, doubling per level")
       ->check(CLI::Range(8, 4096));
+  sub->add_flag("--no-coarse-correction", o->no_coarse_correction,
+                "Do not let the two levels below the finest refit what every level left");
   sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
                 "Evaluate every coarser level on each level's grid, or magnify the coarser grid's reconstruction "
                 "through six samples per axis (default: as accurate, faster)");

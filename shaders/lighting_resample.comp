@@ -4,6 +4,8 @@
 // pixel's footprint), so the GPU and CPU grids hold the same values. Defining SOURCE_TEXTURE
 // reads the frame itself from a texture (texel row 0 = the top row, as it was uploaded) and
 // clamps NaN, Inf and negative channels to 0 on the way in, counting the pixels once each.
+// Defining SOLID_ANGLE weights each source row by its solid angle as well, as
+// sphere::ResampleSolidAngle does (the coarse correction restricts a residue of both signs).
 layout(local_size_x = 16, local_size_y = 16) in;
 
 #ifdef SOURCE_TEXTURE
@@ -13,6 +15,9 @@ layout(std430, binding = 2) buffer Counters { uint bad_pixels; uint negative_pix
 layout(std430, binding = 0) readonly buffer Source { vec4 source[]; };
 #endif
 layout(std430, binding = 1) writeonly buffer Target { vec4 target[]; };
+#ifdef SOLID_ANGLE
+layout(std430, binding = 3) readonly buffer SourceRows { double source_row_solid_angle[]; };
+#endif
 
 uniform ivec2 uSourceSize;
 uniform ivec2 uTargetSize;
@@ -47,8 +52,13 @@ void main() {
   vec2 lo = vec2(p) * s, hi = vec2(p + 1) * s;
   int x_end = min(int(ceil(hi.x)), uSourceSize.x), y_end = min(int(ceil(hi.y)), uSourceSize.y);
   vec3 acc = vec3(0.0);
+  float row_weights = 0.0;
   for (int y = int(floor(lo.y)); y < y_end; ++y) {
     float wy = min(float(y + 1), hi.y) - max(float(y), lo.y);
+#ifdef SOLID_ANGLE
+    wy *= float(source_row_solid_angle[y]);
+#endif
+    row_weights += wy;
     vec3 row = vec3(0.0);
     for (int x = int(floor(lo.x)); x < x_end; ++x) {
       float wx = min(float(x + 1), hi.x) - max(float(x), lo.x);
@@ -57,5 +67,9 @@ void main() {
     }
     acc += wy * row;
   }
+#ifdef SOLID_ANGLE
+  target[p.y * uTargetSize.x + p.x] = vec4(acc / (s.x * row_weights), 0.0);
+#else
   target[p.y * uTargetSize.x + p.x] = vec4(acc / (s.x * s.y), 0.0);
+#endif
 }

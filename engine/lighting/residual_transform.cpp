@@ -656,6 +656,47 @@ const LevelTables& ResidualTransform::Tables(int level, int width, int height) {
   return *slot;
 }
 
+void ResidualTransform::CorrectCoarserLevels(const sphere::EquirectImage& leftover, int input_width, int input_height,
+                                             float keep, SgLighting* model) {
+  // The two levels below the finest, finest first, on the grid of the upper one (see
+  // coarse_correction): the first refits the residue, the second what the first left.
+  const int finest = static_cast<int>(model->levels.size()) - 1;
+  const int upper = finest - 1, lower = std::max(0, finest - 2);
+  const auto [w, h] = GridOf(upper, input_width, input_height);
+  std::lock_guard lock(correction_mutex_);
+  // Kept across frames: a fresh image each frame costs its page faults and zeroing, which on
+  // this machine took longer than the restriction itself.
+  sphere::EquirectImage& residue = correction_residue_;
+  residue.width = w;
+  residue.height = h;
+  if (leftover.width == w && leftover.height == h)
+    residue.rgb = leftover.rgb;
+  else
+    sphere::ResampleSolidAngle(leftover, &residue, pool_.get());
+  std::vector<glm::vec3> delta;
+  for (int l = upper; l >= lower; --l) {
+    const LevelTables& t = Tables(l, w, h);
+    Project(t, residue, options_.normalization, &delta, pool_.get());
+    for (glm::vec3& d : delta) d *= kCoarseCorrectionStep;
+    if (l > lower) Reconstruct(t, delta, -1.0f, residue, &residue, pool_.get());
+    AddRefit(delta, keep, &model->levels[static_cast<std::size_t>(l)]);
+  }
+}
+
+void AddRefit(const std::vector<glm::vec3>& delta, float keep, SgLevel* level) {
+  std::vector<glm::vec3> mu = delta;
+  for (std::size_t k = 0; k < level->indices.size(); ++k)
+    mu[static_cast<std::size_t>(level->indices[k])] += level->amplitudes[k];
+  level->indices.clear();
+  level->amplitudes.clear();
+  for (std::size_t c = 0; c < mu.size(); ++c) {
+    const glm::vec3 m = mu[c];
+    if (std::max({std::abs(m.x), std::abs(m.y), std::abs(m.z)}) < keep) continue;
+    level->indices.push_back(static_cast<int>(c));
+    level->amplitudes.push_back(m);
+  }
+}
+
 SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, TransformReport* report_out) {
   return Run(input, nullptr, report_out);
 }
@@ -734,6 +775,10 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
   // The residue a kept level left, on its grid: the next level's residue when it works on the
   // same grid (levels 0 and 1 share a 64-wide one), which then need not be evaluated again.
   sphere::EquirectImage carried;
+  // What every kept level left, for the coarse correction: the last kept level's residue, or
+  // the residue entering a rejected level (on that finer grid).
+  sphere::EquirectImage leftover;
+  bool converged = false;
   for (int s = 0; s < levels; ++s) {
     const auto level_start = Clock::now();
     const auto [w, h] = GridOf(s, input.width, input.height);
@@ -762,6 +807,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     const double rms_before = RmsOf(sums_before);
     if (before < options_.stop_threshold && s > 0) {
       report.stop_reason = "residue below threshold before level " + std::to_string(s);
+      converged = true;
       break;
     }
 
@@ -812,6 +858,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
       lr.ms = MsSince(level_start);
       report.levels.push_back(lr);
       report.stop_reason = "level " + std::to_string(s) + " does not reduce the residue";
+      leftover = std::move(residue);
       break;
     }
     lr.residue_after = after;
@@ -836,6 +883,12 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     }
   }
   if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
+  // A residue below the stop threshold has nothing left for the coarser levels to take.
+  if (options_.coarse_correction && !converged && model.levels.size() >= 2) {
+    const auto correction_start = Clock::now();
+    CorrectCoarserLevels(leftover.rgb.empty() ? carried : leftover, input.width, input.height, keep, &model);
+    report.correction_ms = MsSince(correction_start);
+  }
 
   report.total_ms = MsSince(start);
   if (report_out) *report_out = report;

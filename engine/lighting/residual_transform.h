@@ -37,6 +37,9 @@
 
 namespace odvr::lighting {
 
+// The step of the coarse correction's refits (ResidualTransformOptions::coarse_correction).
+inline constexpr float kCoarseCorrectionStep = 0.7f;
+
 // kNone: eq. 4.17 as written. kLocalSum: μ_c / S̄_c. kPartition: each pixel's residue is shared
 // among the SRBFs covering it in proportion to G_c(ω)/S(ω) (a partition of unity), so a level
 // conserves the residue's energy exactly: Σ_c μ_c Σ_ω G_c dA = Σ_ω r dA.
@@ -89,6 +92,21 @@ struct ResidualTransformOptions {
   // 14 % less time at 2048 wide, 5 levels (sky: 7.0 → 6.0 ms): the coarser levels evaluated on
   // the finest grid were 30 % of level 4's time.
   bool exact_reconstruction = false;
+  // After the last level, the two levels below it refit what every level left (a multigrid
+  // V-cycle's restriction leg, finer first, each refitting what the other left): a level's fit
+  // leaves a low-frequency error in its residue that the finer levels' narrow lobes do not take
+  // back. hall's glossy-20 error rose from 0.0036 to 0.0046 when level 4 was added, where the
+  // least-squares optimum's falls to 0.0016; with the refit it is 0.0014 (2048 wide, peaks).
+  // Measured on the 18 maps at 2048 wide, 5 levels (docs/benchmarks/lighting.md):
+  // - on the upper level's grid, the residue restricted by solid angle. Levels 0–1 refit too,
+  //   but on their own 64-wide grid, made lab's and lobby's errors 5-10x worse: a coarse pixel's
+  //   weight stands for a footprint over which both the residue (of either sign, as large as the
+  //   radiance near a lamp) and the SRBF vary, an error far above the low-frequency part being
+  //   sought. On a 256-wide grid they did help, for 3x the time;
+  // - the refit steps at kCoarseCorrectionStep, not 1: full steps overshot on workshop (diffuse
+  //   1.51x the optimum).
+  // It costs about 0.6 ms at 2048 wide (levels 3 and 2 on level 3's 256-wide grid).
+  bool coarse_correction = true;
   void Check() const;  // throws odvr::Error
 };
 
@@ -106,7 +124,8 @@ struct LevelReport {
 struct TransformReport {
   std::vector<LevelReport> levels;
   double mean_radiance = 0;
-  double prepare_ms = 0;  // resampling the input to the working grids
+  double prepare_ms = 0;     // resampling the input to the working grids
+  double correction_ms = 0;  // the coarser levels' refit (coarse_correction)
   double total_ms = 0;
   std::string stop_reason;
   std::string device = "cpu";
@@ -166,10 +185,16 @@ class ResidualTransform {
 
  private:
   SgLighting Run(const sphere::EquirectImage& input, sphere::EquirectImage* owned, TransformReport* report);
+  // coarse_correction: `residue` is what every level left, on the grid of the finest level it was
+  // computed for; the levels below the finest kept one refit it.
+  void CorrectCoarserLevels(const sphere::EquirectImage& leftover, int input_width, int input_height, float keep,
+                            SgLighting* model);
   ResidualTransformOptions options_;
   std::unique_ptr<ThreadPool> pool_;
   std::mutex mutex_;
   std::map<std::tuple<int, int, int>, std::unique_ptr<LevelTables>> tables_;
+  std::mutex correction_mutex_;
+  sphere::EquirectImage correction_residue_;
 };
 
 // The pieces of the transform's definition that the CPU and GPU paths share, so that their
@@ -190,6 +215,11 @@ int SweepsOf(const ResidualTransformOptions& options, int level);
 // The step of the refitting passes of HEALPix level s (fine_relaxation at levels 3–5, else 1).
 float RelaxationOf(const ResidualTransformOptions& options, int level);
 double RegionCutoffOf(const ResidualTransformOptions& options, int level);
+
+// The coarse correction's refit `delta` (one per SRBF of the level) added to a level's amplitudes,
+// which then pass the keep rule again (|μ| below `keep` in every channel: dropped): an SRBF
+// dropped before may now matter, and one kept may now be negligible.
+void AddRefit(const std::vector<glm::vec3>& delta, float keep, SgLevel* level);
 
 // The CPU passes run in 256-bit registers where the CPU has AVX2 (the build targets plain
 // x86-64), else in 128-bit ones, with the same sums in the same order. false forces the 128-bit

@@ -100,6 +100,7 @@ ResidualTransformGpu::ResidualTransformGpu(ResidualTransformOptions options)
   stats_total_ = gl::ShaderLibrary::Compute("lighting_stats_total.comp", group(software ? 32 : 256));
   resample_texture_ = gl::ShaderLibrary::Compute("lighting_resample.comp", "#define SOURCE_TEXTURE 1\n");
   resample_ = gl::ShaderLibrary::Compute("lighting_resample.comp");
+  restrict_ = gl::ShaderLibrary::Compute("lighting_resample.comp", "#define SOLID_ANGLE 1\n");
   upsample_ = gl::ShaderLibrary::Compute("lighting_upsample.comp");
   reconstruct_ = gl::ShaderLibrary::Compute("lighting_reconstruct.comp");
   keep_ = gl::ShaderLibrary::Compute("lighting_keep.comp");
@@ -224,6 +225,36 @@ void ResidualTransformGpu::Project(const Tables& tables, const gl::Buffer& resid
   StorageBarrier();
 }
 
+void ResidualTransformGpu::CorrectCoarserLevels(const gl::Buffer& leftover, int leftover_grid, float keep,
+                                                SgLighting* model) {
+  const int finest = static_cast<int>(model->levels.size()) - 1;
+  const int upper = finest - 1, lower = std::max(0, finest - 2);
+  const Grid &source = *grids_[static_cast<std::size_t>(leftover_grid)],
+             &grid = *grids_[static_cast<std::size_t>(upper)];
+  // The residue on the upper level's grid, in whichever scratch buffer `leftover` is not.
+  const gl::Buffer* residue = &leftover;
+  if (source.width != grid.width || source.height != grid.height) {
+    residue = &leftover == &residue_ ? &remaining_ : &residue_;
+    Bind(leftover, 0);
+    Bind(*residue, 1);
+    Bind(source.row_solid_angle, 3);
+    SetSize(restrict_, "uSourceSize", source.width, source.height);
+    SetSize(restrict_, "uTargetSize", grid.width, grid.height);
+    restrict_.DispatchCovering(static_cast<unsigned>(grid.width), static_cast<unsigned>(grid.height));
+    StorageBarrier();
+  }
+  for (int l = upper; l >= lower; --l) {
+    const Tables& t = TablesFor(l, grid.width, grid.height, true);
+    // μ = 0 + step · projection: the step applied before the residue is updated, as on the CPU.
+    glClearNamedBufferData(mu_[0].id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+    Project(t, *residue, mu_[0], true, kCoarseCorrectionStep);
+    if (l > lower) Reconstruct(&t, mu_[0], *residue, *residue, -1.f, grid, false, false);
+    const std::vector<glm::vec4> delta4 = mu_[0].Read<glm::vec4>(static_cast<std::size_t>(t.srbfs));
+    std::vector<glm::vec3> delta(delta4.begin(), delta4.end());
+    AddRefit(delta, keep, &model->levels[static_cast<std::size_t>(l)]);
+  }
+}
+
 SgLighting ResidualTransformGpu::Run(const sphere::EquirectImage& input, TransformReport* report) {
   const auto start = Clock::now();
   CheckTransformInput(input.width, input.height);
@@ -300,6 +331,10 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   const float keep = static_cast<float>(options_.keep_threshold * report.mean_radiance);
   int recon = 0, mu = 0;  // which of the two buffers holds the current reconstruction / amplitudes
   int previous_level = -1;
+  // What every kept level left, for the coarse correction: remaining_ on the last kept level's
+  // grid, or residue_ on the grid of a rejected level (what the CPU path's `leftover` holds).
+  bool converged = false, leftover_in_residue = false;
+  int leftover_grid = 0;
   for (int s = 0; s < levels; ++s) {
     const auto level_start = Clock::now();
     const Grid& grid = *grids_[static_cast<std::size_t>(s)];
@@ -359,6 +394,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     const double before = before_sums.MeanAbs() / report.mean_radiance;
     if (before < options_.stop_threshold && s > 0) {
       report.stop_reason = "residue below threshold before level " + std::to_string(s);
+      converged = true;
       break;
     }
     const double after = after_sums.MeanAbs() / report.mean_radiance;
@@ -376,6 +412,8 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
       lr.ms = MsSince(level_start);
       report.levels.push_back(lr);
       report.stop_reason = "level " + std::to_string(s) + " does not reduce the residue";
+      leftover_in_residue = true;
+      leftover_grid = s;
       break;
     }
     lr.residue_after = after;
@@ -402,6 +440,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     }
     mu = 1 - mu;  // the accepted amplitudes stay on the GPU for the next level's reconstruction
     previous_level = s;
+    leftover_grid = s;
     lr.ms = MsSince(level_start);
     report.levels.push_back(lr);
     if (after < options_.stop_threshold) {
@@ -410,6 +449,11 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     }
   }
   if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
+  if (options_.coarse_correction && !converged && model.levels.size() >= 2) {
+    const auto correction_start = Clock::now();
+    CorrectCoarserLevels(leftover_in_residue ? residue_ : remaining_, leftover_grid, keep, &model);
+    report.correction_ms = MsSince(correction_start);
+  }
   report.total_ms = MsSince(start);
   if (report_out) *report_out = report;
   return model;

@@ -54,11 +54,15 @@ class ResidualTransformGpu {
   // out = base + sign·Σ μ G (tables == nullptr: nothing added); see lighting_reconstruct.comp.
   void Reconstruct(const Tables* tables, const gl::Buffer& mu, const gl::Buffer& base, const gl::Buffer& out,
                    float sign, const Grid& grid, bool write_residue, bool only_if_dropped);
+  // ResidualTransformOptions::coarse_correction, as the CPU path does it: `leftover` (residue_ or
+  // remaining_) is what every level left, on grids_[leftover_grid].
+  void CorrectCoarserLevels(const gl::Buffer& leftover, int leftover_grid, float keep, SgLighting* model);
 
   ResidualTransformOptions options_;
   std::unique_ptr<ThreadPool> pool_;  // builds the overlap lists
   gl::Program resample_texture_{gl::NoCreate}, resample_{gl::NoCreate}, upsample_{gl::NoCreate}, stats_{gl::NoCreate},
-      stats_total_{gl::NoCreate}, project_{gl::NoCreate}, reconstruct_{gl::NoCreate}, keep_{gl::NoCreate};
+      stats_total_{gl::NoCreate}, project_{gl::NoCreate}, reconstruct_{gl::NoCreate}, keep_{gl::NoCreate},
+      restrict_{gl::NoCreate};
   std::map<std::tuple<int, int, int>, std::unique_ptr<Tables>> tables_;
   std::vector<std::unique_ptr<Grid>> grids_;  // per level, for the last input size
   int grids_input_width_ = 0, grids_input_height_ = 0;

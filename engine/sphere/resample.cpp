@@ -8,6 +8,7 @@
 
 #include "engine/core/error.h"
 #include "engine/core/parallel.h"
+#include "engine/sphere/equirect.h"
 
 namespace odvr::sphere {
 namespace {
@@ -79,6 +80,78 @@ EquirectImage ResampleArea(const EquirectImage& image, int width, int height) {
     }
   }
   return out;
+}
+
+EquirectImage ResampleSolidAngle(const EquirectImage& image, int width, int height, ThreadPool* pool) {
+  if (width == image.width && height == image.height) return image;
+  EquirectImage out;
+  out.width = width;
+  out.height = height;
+  ResampleSolidAngle(image, &out, pool);
+  return out;
+}
+
+void ResampleSolidAngle(const EquirectImage& image, EquirectImage* target, ThreadPool* pool) {
+  const int width = target->width, height = target->height;
+  if (width <= 0 || height <= 0) throw Error("resample", "target size must be positive");
+  if (width > image.width || height > image.height) throw Error("resample", "solid-angle resampling only shrinks");
+  // Within a row every pixel has the same solid angle: the columns are the plain box's, and only
+  // the rows' weights change (coverage × solid angle, normalized per output row).
+  const BoxTaps across = MakeBoxTaps(image.width, width), down = MakeBoxTaps(image.height, height);
+  std::vector<float> row_weight(down.weight.size());
+  for (int row = 0; row < height; ++row) {
+    const auto first = static_cast<std::size_t>(down.begin[static_cast<std::size_t>(row)]);
+    const auto last = static_cast<std::size_t>(down.begin[static_cast<std::size_t>(row) + 1]);
+    double total = 0;
+    for (std::size_t k = first; k < last; ++k)
+      total += down.weight[k] * EquirectPixelSolidAngle(down.index[k], image.width, image.height);
+    for (std::size_t k = first; k < last; ++k)
+      row_weight[k] = static_cast<float>(down.weight[k] *
+                                         EquirectPixelSolidAngle(down.index[k], image.width, image.height) / total);
+  }
+  EquirectImage& out = *target;
+  out.rgb.resize(3 * out.pixel_count());
+  const int n = 3 * image.width;
+  const int factor = image.width / width;
+  const bool whole_columns = image.width == factor * width;
+  auto rows = [&](long begin, long end) {
+    std::vector<float> column(static_cast<std::size_t>(n));
+    for (long row = begin; row < end; ++row) {
+      std::fill(column.begin(), column.end(), 0.f);
+      for (int k = down.begin[static_cast<std::size_t>(row)]; k < down.begin[static_cast<std::size_t>(row) + 1]; ++k) {
+        const float w = row_weight[static_cast<std::size_t>(k)];
+        const float* __restrict in = image.at(0, down.index[static_cast<std::size_t>(k)]);
+        float* __restrict c = column.data();
+        for (int j = 0; j < n; ++j) c[j] += w * in[j];
+      }
+      float* o = out.at(0, static_cast<int>(row));
+      if (whole_columns) {
+        // FoldBoxColumns divides by factor², the rows' weights already sum to one.
+        FoldBoxColumns(column.data(), image.width, factor, o);
+        const float scale = static_cast<float>(factor);
+        for (int j = 0; j < 3 * width; ++j) o[j] *= scale;
+        continue;
+      }
+      for (int i = 0; i < width; ++i) {
+        float acc[3] = {0, 0, 0};
+        for (int k = across.begin[static_cast<std::size_t>(i)]; k < across.begin[static_cast<std::size_t>(i) + 1];
+             ++k) {
+          const float w = across.weight[static_cast<std::size_t>(k)];
+          const float* p = column.data() + 3 * across.index[static_cast<std::size_t>(k)];
+          acc[0] += w * p[0];
+          acc[1] += w * p[1];
+          acc[2] += w * p[2];
+        }
+        o[3 * i] = acc[0];
+        o[3 * i + 1] = acc[1];
+        o[3 * i + 2] = acc[2];
+      }
+    }
+  };
+  if (pool)
+    pool->ParallelFor(height, rows, 8);
+  else
+    rows(0, height);
 }
 
 EquirectImage UpsampleBilinear(const EquirectImage& image, int width, int height) {

@@ -79,6 +79,43 @@ TEST(Resample, OneBrightPixelKeepsItsEnergyWhereverItFalls) {
     }
 }
 
+double SphereIntegral(const EquirectImage& image, int channel) {
+  double sum = 0;
+  for (int row = 0; row < image.height; ++row) {
+    double row_sum = 0;
+    for (int col = 0; col < image.width; ++col) row_sum += image.at(col, row)[channel];
+    sum += row_sum * EquirectPixelSolidAngle(row, image.width, image.height);
+  }
+  return sum;
+}
+
+TEST(Resample, SolidAngleRestrictionKeepsTheIntegralOfASignedImage) {
+  // A residue: noise of both signs, and rows of alternating sign near the north pole (a lamp's
+  // overshoot and undershoot), whose integral is small beside its values.
+  EquirectImage in(512, 256);
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise;
+  for (float& v : in.rgb) v = noise(rng);
+  for (int row = 0; row < 24; ++row)
+    for (int col = 0; col < in.width; ++col) in.at(col, row)[1] += row % 2 ? 5.f : -5.f;
+  const double integral = SphereIntegral(in, 1);
+  for (const int width : {256, 128, 64}) {
+    const EquirectImage restricted = ResampleSolidAngle(in, width, width / 2);
+    const EquirectImage plain = ResampleArea(in, width, width / 2);
+    EXPECT_NEAR(SphereIntegral(restricted, 1), integral, 1e-4 * std::abs(integral)) << width;
+    // The plain box weighs a footprint's rows alike: near a pole that moves the integral.
+    EXPECT_GT(std::abs(SphereIntegral(plain, 1) - integral), 0.5 * std::abs(integral)) << width;
+    // Into an image whose storage is reused: the same values.
+    EquirectImage reused(width, width / 2, 123.f);
+    ResampleSolidAngle(in, &reused, nullptr);
+    EXPECT_EQ(reused.rgb, restricted.rgb);
+  }
+  // A constant stays that constant.
+  const EquirectImage constant = ResampleSolidAngle(EquirectImage(512, 256, 0.25f), 128, 64);
+  for (const float v : constant.rgb) EXPECT_NEAR(v, 0.25f, 1e-6f);
+  EXPECT_THROW(ResampleSolidAngle(in, 1024, 512), Error);
+}
+
 TEST(Resample, BadSizesAreClearErrors) {
   const EquirectImage in(64, 32, 1.f);
   EXPECT_THROW(ResampleArea(in, 0, 16), Error);
