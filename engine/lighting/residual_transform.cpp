@@ -883,8 +883,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     }
   }
   if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
-  // A residue below the stop threshold has nothing left for the coarser levels to take.
-  if (options_.coarse_correction && !converged && model.levels.size() >= 2) {
+  if (CoarseCorrectionApplies(options_, static_cast<int>(model.levels.size()), converged)) {
     const auto correction_start = Clock::now();
     CorrectCoarserLevels(leftover.rgb.empty() ? carried : leftover, input.width, input.height, keep, &model);
     report.correction_ms = MsSince(correction_start);

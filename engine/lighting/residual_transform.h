@@ -105,7 +105,8 @@ struct ResidualTransformOptions {
   //   sought. On a 256-wide grid they did help, for 3x the time;
   // - the refit steps at kCoarseCorrectionStep, not 1: full steps overshot on workshop (diffuse
   //   1.51x the optimum).
-  // It costs about 0.6 ms at 2048 wide (levels 3 and 2 on level 3's 256-wide grid).
+  // It costs about 0.6 ms at 2048 wide (levels 3 and 2 on level 3's 256-wide grid), and runs from
+  // 5 levels on (CoarseCorrectionApplies).
   bool coarse_correction = true;
   void Check() const;  // throws odvr::Error
 };
@@ -215,6 +216,16 @@ int SweepsOf(const ResidualTransformOptions& options, int level);
 // The step of the refitting passes of HEALPix level s (fine_relaxation at levels 3–5, else 1).
 float RelaxationOf(const ResidualTransformOptions& options, int level);
 double RegionCutoffOf(const ResidualTransformOptions& options, int level);
+
+// Whether the coarse correction runs after `kept_levels` levels (0..kept_levels−1) were kept: not
+// once the residue fell below the stop threshold (`converged`: nothing left to refit), and only
+// when the finest kept level is one of the narrow ones (level 4 up, λ ≥ 1449). With 3 or 4
+// levels the refit levels work on a 64- or 128-wide grid, where it moved the errors either way
+// (2048 wide, peaks: lab's diffuse error at 3 levels 0.0036 → 0.0044, hall's at 4 levels
+// 0.00085 → 0.00052) at 0.2-0.3 ms.
+inline bool CoarseCorrectionApplies(const ResidualTransformOptions& options, int kept_levels, bool converged) {
+  return options.coarse_correction && !converged && kept_levels >= 5;
+}
 
 // The coarse correction's refit `delta` (one per SRBF of the level) added to a level's amplitudes,
 // which then pass the keep rule again (|μ| below `keep` in every channel: dropped): an SRBF

@@ -449,7 +449,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     }
   }
   if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
-  if (options_.coarse_correction && !converged && model.levels.size() >= 2) {
+  if (CoarseCorrectionApplies(options_, static_cast<int>(model.levels.size()), converged)) {
     const auto correction_start = Clock::now();
     CorrectCoarserLevels(leftover_in_residue ? residue_ : remaining_, leftover_grid, keep, &model);
     report.correction_ms = MsSince(correction_start);

@@ -33,6 +33,8 @@ void ExpectSameTransform(const SgLighting& cpu, const TransformReport& cpu_repor
                          const TransformReport& gpu_report) {
   EXPECT_EQ(gpu_report.device, "gpu");
   EXPECT_EQ(gpu_report.stop_reason, cpu_report.stop_reason);
+  // Both ran the coarse correction, or neither did (its refit is in the amplitudes compared below).
+  EXPECT_EQ(gpu_report.correction_ms > 0, cpu_report.correction_ms > 0);
   EXPECT_NEAR(gpu_report.mean_radiance, cpu_report.mean_radiance, 1e-5 * cpu_report.mean_radiance);
   const double constant_scale = std::max(1e-12, MaxAbs(cpu.constant));
   EXPECT_LT(MaxAbs(gpu.constant - cpu.constant), 1e-5 * constant_scale);
@@ -96,6 +98,7 @@ TEST_F(ResidualTransformGpuGL, MagnifiedReconstructionMatchesCpu) {
   TransformReport report;
   cpu.Run(SunnySky(256, 128), &report);
   ASSERT_EQ(report.levels.size(), 5u) << report.stop_reason;
+  EXPECT_GT(report.correction_ms, 0.0);  // the comparison covers the coarse correction
   ExpectGpuMatchesCpu(SunnySky(256, 128), o);
 }
 
