@@ -186,8 +186,8 @@ class ResidualTransform {
 
  private:
   SgLighting Run(const sphere::EquirectImage& input, sphere::EquirectImage* owned, TransformReport* report);
-  // coarse_correction: `residue` is what every level left, on the grid of the finest level it was
-  // computed for; the levels below the finest kept one refit it.
+  // coarse_correction: `leftover` is what every level left, on the grid of the finest level it was
+  // computed for; the two levels below the finest kept one refit it.
   void CorrectCoarserLevels(const sphere::EquirectImage& leftover, int input_width, int input_height, float keep,
                             SgLighting* model);
   ResidualTransformOptions options_;

@@ -243,15 +243,20 @@ void ResidualTransformGpu::CorrectCoarserLevels(const gl::Buffer& leftover, int 
     restrict_.DispatchCovering(static_cast<unsigned>(grid.width), static_cast<unsigned>(grid.height));
     StorageBarrier();
   }
+  // Each refit level's amplitudes in its own buffer (mu_[0] the upper, mu_[1] the lower), read
+  // back together at the end: one wait for the GPU instead of one per level.
   for (int l = upper; l >= lower; --l) {
+    const gl::Buffer& delta = mu_[upper - l];
     const Tables& t = TablesFor(l, grid.width, grid.height, true);
     // μ = 0 + step · projection: the step applied before the residue is updated, as on the CPU.
-    glClearNamedBufferData(mu_[0].id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
-    Project(t, *residue, mu_[0], true, kCoarseCorrectionStep);
-    if (l > lower) Reconstruct(&t, mu_[0], *residue, *residue, -1.f, grid, false, false);
-    const std::vector<glm::vec4> delta4 = mu_[0].Read<glm::vec4>(static_cast<std::size_t>(t.srbfs));
-    std::vector<glm::vec3> delta(delta4.begin(), delta4.end());
-    AddRefit(delta, keep, &model->levels[static_cast<std::size_t>(l)]);
+    glClearNamedBufferData(delta.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+    Project(t, *residue, delta, true, kCoarseCorrectionStep);
+    if (l > lower) Reconstruct(&t, delta, *residue, *residue, -1.f, grid, false, false);
+  }
+  for (int l = upper; l >= lower; --l) {
+    const std::vector<glm::vec4> delta4 =
+        mu_[upper - l].Read<glm::vec4>(static_cast<std::size_t>(TablesFor(l, grid.width, grid.height, true).srbfs));
+    AddRefit(std::vector<glm::vec3>(delta4.begin(), delta4.end()), keep, &model->levels[static_cast<std::size_t>(l)]);
   }
 }
 

@@ -39,6 +39,23 @@ BoxTaps MakeBoxTaps(int n_in, int n_out) {
   return t;
 }
 
+// One row of `width` RGB outputs, each the taps' weighted sum of the input row's pixels.
+void BoxRow(const float* in, const BoxTaps& across, int width, float* out) {
+  for (int i = 0; i < width; ++i) {
+    float acc[3] = {0, 0, 0};
+    for (int k = across.begin[static_cast<std::size_t>(i)]; k < across.begin[static_cast<std::size_t>(i) + 1]; ++k) {
+      const float w = across.weight[static_cast<std::size_t>(k)];
+      const float* p = in + 3 * across.index[static_cast<std::size_t>(k)];
+      acc[0] += w * p[0];
+      acc[1] += w * p[1];
+      acc[2] += w * p[2];
+    }
+    out[3 * i] = acc[0];
+    out[3 * i + 1] = acc[1];
+    out[3 * i + 2] = acc[2];
+  }
+}
+
 }  // namespace
 
 EquirectImage ResampleArea(const EquirectImage& image, int width, int height) {
@@ -52,23 +69,7 @@ EquirectImage ResampleArea(const EquirectImage& image, int width, int height) {
   // the integer-factor box (odvr_microbench).
   const BoxTaps across = MakeBoxTaps(image.width, width), down = MakeBoxTaps(image.height, height);
   EquirectImage horizontal(width, image.height);
-  for (int row = 0; row < image.height; ++row) {
-    const float* in = image.at(0, row);
-    float* out = horizontal.at(0, row);
-    for (int i = 0; i < width; ++i) {
-      float acc[3] = {0, 0, 0};
-      for (int k = across.begin[static_cast<std::size_t>(i)]; k < across.begin[static_cast<std::size_t>(i) + 1]; ++k) {
-        const float w = across.weight[static_cast<std::size_t>(k)];
-        const float* p = in + 3 * across.index[static_cast<std::size_t>(k)];
-        acc[0] += w * p[0];
-        acc[1] += w * p[1];
-        acc[2] += w * p[2];
-      }
-      out[3 * i] = acc[0];
-      out[3 * i + 1] = acc[1];
-      out[3 * i + 2] = acc[2];
-    }
-  }
+  for (int row = 0; row < image.height; ++row) BoxRow(image.at(0, row), across, width, horizontal.at(0, row));
   EquirectImage out(width, height, 0.f);
   const int n = 3 * width;
   for (int row = 0; row < height; ++row) {
@@ -130,21 +131,8 @@ void ResampleSolidAngle(const EquirectImage& image, EquirectImage* target, Threa
         FoldBoxColumns(column.data(), image.width, factor, o);
         const float scale = static_cast<float>(factor);
         for (int j = 0; j < 3 * width; ++j) o[j] *= scale;
-        continue;
-      }
-      for (int i = 0; i < width; ++i) {
-        float acc[3] = {0, 0, 0};
-        for (int k = across.begin[static_cast<std::size_t>(i)]; k < across.begin[static_cast<std::size_t>(i) + 1];
-             ++k) {
-          const float w = across.weight[static_cast<std::size_t>(k)];
-          const float* p = column.data() + 3 * across.index[static_cast<std::size_t>(k)];
-          acc[0] += w * p[0];
-          acc[1] += w * p[1];
-          acc[2] += w * p[2];
-        }
-        o[3 * i] = acc[0];
-        o[3 * i + 1] = acc[1];
-        o[3 * i + 2] = acc[2];
+      } else {
+        BoxRow(column.data(), across, width, o);
       }
     }
   };

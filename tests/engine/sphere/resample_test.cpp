@@ -110,9 +110,11 @@ TEST(Resample, SolidAngleRestrictionKeepsTheIntegralOfASignedImage) {
     ResampleSolidAngle(in, &reused, nullptr);
     EXPECT_EQ(reused.rgb, restricted.rgb);
   }
-  // A constant stays that constant.
-  const EquirectImage constant = ResampleSolidAngle(EquirectImage(512, 256, 0.25f), 128, 64);
-  for (const float v : constant.rgb) EXPECT_NEAR(v, 0.25f, 1e-6f);
+  // A constant stays that constant, with whole and with fractional footprints.
+  for (const int width : {128, 300}) {
+    const EquirectImage constant = ResampleSolidAngle(EquirectImage(512, 256, 0.25f), width, width / 2);
+    for (const float v : constant.rgb) EXPECT_NEAR(v, 0.25f, 1e-6f) << width;
+  }
   EXPECT_THROW(ResampleSolidAngle(in, 1024, 512), Error);
 }
 
