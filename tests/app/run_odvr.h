@@ -20,7 +20,7 @@ struct CliRun {
   std::string err;  // stderr
 };
 
-inline CliRun RunOdvr(const std::string& args) {
+inline CliRun RunOdvrOnce(const std::string& args) {
   // Per process: ctest runs the app tests in parallel.
   const std::string err_file = ::testing::TempDir() + "odvr_err_" + std::to_string(::getpid()) + ".txt";
   const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
@@ -34,6 +34,19 @@ inline CliRun RunOdvr(const std::string& args) {
   if (FILE* f = std::fopen(err_file.c_str(), "r")) {
     while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
     std::fclose(f);
+  }
+  return run;
+}
+
+inline CliRun RunOdvr(const std::string& args) {
+  CliRun run = RunOdvrOnce(args);
+  // Under the sanitizer build, LeakSanitizer's own tracer sometimes crashes at exit after the
+  // program has done its work ("Tracer caught signal 11 ... LeakSanitizer has encountered a fatal
+  // error"; seen twice on app/run_render_test, never reproduced in reruns). That is the leak
+  // checker failing, not odvr: run once more, and let a second failure stand.
+  if (run.exit_code != 0 && run.err.find("LeakSanitizer has encountered a fatal error") != std::string::npos) {
+    std::fprintf(stderr, "odvr %s: LeakSanitizer's tracer crashed at exit, running it again\n", args.c_str());
+    run = RunOdvrOnce(args);
   }
   return run;
 }
