@@ -302,6 +302,34 @@ class PixelMarks {
   std::vector<int> marked_;
 };
 
+struct SortScratch {
+  std::vector<int> counts, pixels;
+};
+
+// Ascending pixel indices (row·w + col). A large component is sorted by column then, stably, by
+// row (two counting passes): std::sort of bridge.exr's 15 257-pixel overcast zenith, in the
+// flood fill's order, was a quarter of its components' time. Both give the same order.
+void SortPixels(int w, int h, std::vector<int>* pixels, SortScratch* scratch) {
+  std::vector<int>& px = *pixels;
+  if (px.size() < 1024) {
+    std::sort(px.begin(), px.end());
+    return;
+  }
+  std::vector<int>& out = scratch->pixels;
+  std::vector<int>& counts = scratch->counts;
+  out.resize(px.size());
+  const auto pass = [&](int buckets, auto key, const std::vector<int>& from, std::vector<int>& to) {
+    counts.assign(static_cast<std::size_t>(buckets) + 1, 0);
+    for (int p : from) ++counts[static_cast<std::size_t>(key(p)) + 1];
+    for (int b = 0; b < buckets; ++b) counts[static_cast<std::size_t>(b) + 1] += counts[static_cast<std::size_t>(b)];
+    for (int p : from) to[static_cast<std::size_t>(counts[static_cast<std::size_t>(key(p))]++)] = p;
+  };
+  const auto column = [w](int p) { return p % w; };
+  const auto row = [w](int p) { return p / w; };
+  pass(w, column, px, out);
+  pass(h, row, out, px);
+}
+
 // The bright pixels grouped into components, 8-connected on the sphere: joined across the ±180°
 // seam, and all of row 0 (and of row h−1) joined at its pole. Each component's pixels
 // (row·w + col) ascending; components in the order of their first candidate block.
@@ -338,6 +366,7 @@ std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, con
     stack.push_back(q);
   };
   std::vector<std::vector<int>> components;
+  SortScratch sort_scratch;
   for (int by = 0; by < scan.blocks_high; ++by)
     for (int bx = 0; bx < scan.blocks_wide; ++bx) {
       if (!candidate(bx, by)) continue;
@@ -348,6 +377,10 @@ std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, con
           seen.Set(seed, 1);
           std::vector<int> pixels;
           stack.assign(1, seed);
+          // The bright pixels of a pole row join a component once: pushing them again from each
+          // of its pixels in that row made a bright zenith quadratic in the row's width (bridge.exr's
+          // overcast sky: 1.4 of the detector's 2.5 ms).
+          bool top_joined = false, bottom_joined = false;
           while (!stack.empty()) {
             const int p = stack.back();
             stack.pop_back();
@@ -355,12 +388,16 @@ std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, con
             const int r = p / w, c = p % w;
             for (int r2 = std::max(0, r - 1); r2 <= std::min(h - 1, r + 1); ++r2)
               for (int dc = -1; dc <= 1; ++dc) push(r2 * w + (c + dc + w) % w);
-            if (r == 0)
+            if (r == 0 && !top_joined) {
+              top_joined = true;
               for (int q : top) push(q);
-            if (r == h - 1)
+            }
+            if (r == h - 1 && !bottom_joined) {
+              bottom_joined = true;
               for (int q : bottom) push(q);
+            }
           }
-          std::sort(pixels.begin(), pixels.end());
+          SortPixels(w, h, &pixels, &sort_scratch);
           components.push_back(std::move(pixels));
         }
     }
@@ -539,7 +576,8 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
         for (int dc = -1; dc <= 1; ++dc) {
           const int r2 = row + dr;
           if (r2 < 0 || r2 >= h) continue;
-          const int c2 = ((col + dc) % w + w) % w;
+          // Wrapped by hand: two integer divisions per neighbour were most of this loop's time.
+          const int c2 = col + dc < 0 ? col + dc + w : (col + dc >= w ? col + dc - w : col + dc);
           const int q = r2 * w + c2;
           if (in[q]) continue;
           in.Set(q, 2);  // count each ring pixel once

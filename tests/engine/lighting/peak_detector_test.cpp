@@ -274,7 +274,7 @@ std::set<std::vector<int>> WholeFrameComponents(const sphere::EquirectImage& f, 
 // The candidate blocks only skip work: for any block size, including sizes that do not divide
 // the frame and blocks of one pixel, the components are exactly those of the whole frame, on
 // scattered specks, a spot over the seam, spots near both poles and runs of the first and last
-// rows joined only through their pole, in HDR and LDR.
+// rows joined only through their pole, and a polar cap of thousands of pixels, in HDR and LDR.
 TEST(PeakDetector, CandidateBlocksFindExactlyTheWholeFramesComponents) {
   sphere::EquirectImage frame(250, 125, 0.2f);
   std::mt19937 rng(7);
@@ -290,18 +290,29 @@ TEST(PeakDetector, CandidateBlocksFindExactlyTheWholeFramesComponents) {
   // Runs of row 0 and of row 124 apart from each other: one component each, through its pole.
   for (const int c : {10, 11, 130, 200})
     for (const int r : {0, 124}) std::fill_n(frame.at(c, r), 3, 2.f);
-  for (const bool ldr : {false, true}) {
-    const double threshold = ldr ? 0.98 : 1.0;
-    const auto truth = WholeFrameComponents(frame, threshold, ldr);
-    ASSERT_GT(truth.size(), 100u);
-    for (const int block : {1, 7, 32, 1000}) {
-      const auto found = BrightComponents(frame, threshold, ldr, block);
-      const std::set<std::vector<int>> got(found.begin(), found.end());
-      EXPECT_EQ(found.size(), got.size()) << "a component found twice, block " << block;
-      EXPECT_TRUE(got == truth) << "block " << block << (ldr ? " LDR" : " HDR") << ": " << got.size() << " vs "
-                                << truth.size() << " components";
+  // The same specks under a bright cap of 22° radius over the north pole and the seam: one
+  // component of thousands of pixels, sorted by the counting passes (small ones by std::sort),
+  // whose pole row is joined once however many of its pixels the fill reaches.
+  sphere::EquirectImage capped = frame;
+  AddDisc(&capped, Dir(180, 70), 22 * sphere::kPi / 180, 2.f);
+  for (const auto* f : {&frame, &capped})
+    for (const bool ldr : {false, true}) {
+      const double threshold = ldr ? 0.98 : 1.0;
+      const auto truth = WholeFrameComponents(*f, threshold, ldr);
+      ASSERT_GT(truth.size(), 100u);
+      std::size_t largest = 0;
+      for (const auto& c : truth) largest = std::max(largest, c.size());
+      if (f == &capped) {
+        EXPECT_GT(largest, 3000u);
+      }
+      for (const int block : {1, 7, 32, 1000}) {
+        const auto found = BrightComponents(*f, threshold, ldr, block);
+        const std::set<std::vector<int>> got(found.begin(), found.end());
+        EXPECT_EQ(found.size(), got.size()) << "a component found twice, block " << block;
+        EXPECT_TRUE(got == truth) << "block " << block << (ldr ? " LDR" : " HDR") << ": " << got.size() << " vs "
+                                  << truth.size() << " components";
+      }
     }
-  }
 }
 
 // An LDR sky of linear values in (0, 1) with a sun clipped at 1.
