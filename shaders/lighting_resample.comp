@@ -1,11 +1,10 @@
 #version 450
 // Area resampling of an equirect image to a working grid of the residual transform: the 2D form
-// of sphere::ResampleArea (a box filter with fractional coverage, the mean of every output
-// pixel's footprint), so the GPU and CPU grids hold the same values. Defining SOURCE_TEXTURE
-// reads the frame itself from a texture (texel row 0 = the top row, as it was uploaded) and
-// clamps NaN, Inf and negative channels to 0 on the way in, counting the pixels once each.
-// Defining SOLID_ANGLE weights each source row by its solid angle as well, as
-// sphere::ResampleSolidAngle does (the coarse correction restricts a residue of both signs).
+// of sphere::ResampleArea (a box filter with fractional coverage, each source row weighted by its
+// coverage times its solid angle: the mean of every output pixel's footprint on the sphere), so
+// the GPU and CPU grids hold the same values. Defining SOURCE_TEXTURE reads the frame itself from
+// a texture (texel row 0 = the top row, as it was uploaded) and clamps NaN, Inf and negative
+// channels to 0 on the way in, counting the pixels once each.
 layout(local_size_x = 16, local_size_y = 16) in;
 
 #ifdef SOURCE_TEXTURE
@@ -15,11 +14,9 @@ layout(std430, binding = 2) buffer Counters { uint bad_pixels; uint negative_pix
 layout(std430, binding = 0) readonly buffer Source { vec4 source[]; };
 #endif
 layout(std430, binding = 1) writeonly buffer Target { vec4 target[]; };
-#ifdef SOLID_ANGLE
-layout(std430, binding = 3) readonly buffer SourceRows { double source_row_solid_angle[]; };
-#endif
 
 uniform ivec2 uSourceSize;
+const float kPi = 3.14159265358979323846;
 uniform ivec2 uTargetSize;
 
 vec3 fetchSource(int x, int y, bool count) {
@@ -54,10 +51,10 @@ void main() {
   vec3 acc = vec3(0.0);
   float row_weights = 0.0;
   for (int y = int(floor(lo.y)); y < y_end; ++y) {
-    float wy = min(float(y + 1), hi.y) - max(float(y), lo.y);
-#ifdef SOLID_ANGLE
-    wy *= float(source_row_solid_angle[y]);
-#endif
+    // The area of the part of row y's latitude band inside the target row's, per radian of
+    // longitude: cos θ0 − cos θ1 as a product of sines, accurate for thin bands in float.
+    float a = kPi * max(float(y), lo.y) / float(uSourceSize.y), b = kPi * min(float(y + 1), hi.y) / float(uSourceSize.y);
+    float wy = 2.0 * sin(0.5 * (a + b)) * sin(0.5 * (b - a));
     row_weights += wy;
     vec3 row = vec3(0.0);
     for (int x = int(floor(lo.x)); x < x_end; ++x) {
@@ -67,9 +64,5 @@ void main() {
     }
     acc += wy * row;
   }
-#ifdef SOLID_ANGLE
   target[p.y * uTargetSize.x + p.x] = vec4(acc / (s.x * row_weights), 0.0);
-#else
-  target[p.y * uTargetSize.x + p.x] = vec4(acc / (s.x * s.y), 0.0);
-#endif
 }

@@ -134,9 +134,10 @@ struct BandScan {
 
 // Rows [row0, row1) of the scan below: a whole number of candidate blocks and coarse cells, so
 // bands write disjoint parts of s->block_max, the coarse grid and (from `source`) the frame.
+// `coarse_weights`, `source_weights`: sphere::BoxRowWeights of the frame's and the source's rows.
 BandScan ScanRows(const sphere::EquirectImage& frame, const std::vector<double>& da, int row0, int row1, FrameScan* s,
-                  int coarse_factor, sphere::EquirectImage* coarse, const sphere::EquirectImage* source,
-                  int source_factor) {
+                  int coarse_factor, sphere::EquirectImage* coarse, const std::vector<float>& coarse_weights,
+                  const sphere::EquirectImage* source, int source_factor, const std::vector<float>& source_weights) {
   const int w = frame.width, block = s->block;
   std::vector<float> column;
   if (coarse) column.assign(3 * static_cast<std::size_t>(w), 0.f);
@@ -151,7 +152,8 @@ BandScan ScanRows(const sphere::EquirectImage& frame, const std::vector<double>&
     if (source) {
       std::fill(source_column.begin(), source_column.end(), 0.f);
       for (int dy = 0; dy < source_factor; ++dy)
-        sphere::AddBoxRow(source->at(0, row * source_factor + dy), source->width, source_column.data());
+        sphere::AddBoxRow(source->at(0, row * source_factor + dy), source->width,
+                          source_weights[static_cast<std::size_t>(row * source_factor + dy)], source_column.data());
       // The frame is the caller's to fill: written here, read just below.
       sphere::FoldBoxColumns(source_column.data(), source->width, source_factor, const_cast<float*>(frame.at(0, row)));
     }
@@ -210,7 +212,7 @@ BandScan ScanRows(const sphere::EquirectImage& frame, const std::vector<double>&
     for (int j = 0; j < kLanes; ++j) channel_sum[j % 3] += sum[j];
     band.mean += Luminance(channel_sum) * da[static_cast<std::size_t>(row)];
     if (coarse) {
-      sphere::AddBoxRow(frame.at(0, row), w, column.data());
+      sphere::AddBoxRow(frame.at(0, row), w, coarse_weights[static_cast<std::size_t>(row)], column.data());
       if (row % coarse_factor == coarse_factor - 1) {
         sphere::FoldBoxColumns(column.data(), w, coarse_factor, coarse->at(0, row / coarse_factor));
         std::fill(column.begin(), column.end(), 0.f);
@@ -240,11 +242,14 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
   const int band_rows = unit * std::max(1, 64 / unit);
   const int bands = (h + band_rows - 1) / band_rows;
   std::vector<BandScan> results(static_cast<std::size_t>(bands));
+  const std::vector<float> none;
+  const std::vector<float>& coarse_weights = coarse ? sphere::BoxRowWeights(h, coarse_factor) : none;
+  const std::vector<float>& source_weights = source ? sphere::BoxRowWeights(source->height, source_factor) : none;
   const auto run = [&](long begin, long end) {
     for (long b = begin; b < end; ++b)
       results[static_cast<std::size_t>(b)] =
           ScanRows(frame, da, static_cast<int>(b) * band_rows, std::min(h, static_cast<int>(b + 1) * band_rows), &s,
-                   coarse_factor, coarse, source, source_factor);
+                   coarse_factor, coarse, coarse_weights, source, source_factor, source_weights);
   };
   if (pool)
     pool->ParallelFor(bands, run, 1);
@@ -427,6 +432,7 @@ void RefreshCoarse(const sphere::EquirectImage& frame, std::vector<std::pair<int
             [&](const auto& a, const auto& b) { return cell_of(a.first) < cell_of(b.first); });
   std::vector<float> block(3 * static_cast<std::size_t>(factor) * static_cast<std::size_t>(factor));
   std::vector<float> column(3 * static_cast<std::size_t>(factor));
+  const std::vector<float>& weights = sphere::BoxRowWeights(frame.height, factor);
   for (std::size_t i = 0; i < taken.size();) {
     const int cell = cell_of(taken[i].first);
     const int cr = cell / coarse->width, cc = cell % coarse->width;
@@ -440,7 +446,8 @@ void RefreshCoarse(const sphere::EquirectImage& frame, std::vector<std::pair<int
     }
     std::fill(column.begin(), column.end(), 0.f);
     for (int dy = 0; dy < factor; ++dy)
-      sphere::AddBoxRow(&block[3 * static_cast<std::size_t>(dy * factor)], factor, column.data());
+      sphere::AddBoxRow(&block[3 * static_cast<std::size_t>(dy * factor)], factor,
+                        weights[static_cast<std::size_t>(cr * factor + dy)], column.data());
     sphere::FoldBoxColumns(column.data(), factor, factor, coarse->at(cc, cr));
   }
 }

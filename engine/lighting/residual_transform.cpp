@@ -48,6 +48,7 @@ bool HasBadPixels(const float* v, std::size_t n) {
 bool DownsampleBoxIfClean(const sphere::EquirectImage& input, int factor, sphere::EquirectImage* out,
                           ThreadPool* pool) {
   *out = sphere::EquirectImage(input.width / factor, input.height / factor);
+  const std::vector<float>& weights = sphere::BoxRowWeights(input.height, factor);
   std::atomic<bool> bad{false};
   pool->ParallelFor(
       out->height,
@@ -57,9 +58,10 @@ bool DownsampleBoxIfClean(const sphere::EquirectImage& input, int factor, sphere
         for (long row = begin; row < end; ++row) {
           std::fill(column.begin(), column.end(), 0.f);
           for (int dy = 0; dy < factor; ++dy) {
-            const float* in = input.at(0, static_cast<int>(row) * factor + dy);
+            const int source_row = static_cast<int>(row) * factor + dy;
+            const float* in = input.at(0, source_row);
             band_bad = HasBadPixels(in, 3 * static_cast<std::size_t>(input.width)) || band_bad;
-            sphere::AddBoxRow(in, input.width, column.data());
+            sphere::AddBoxRow(in, input.width, weights[static_cast<std::size_t>(source_row)], column.data());
           }
           sphere::FoldBoxColumns(column.data(), input.width, factor, out->at(0, static_cast<int>(row)));
         }
@@ -672,7 +674,7 @@ void ResidualTransform::CorrectCoarserLevels(const sphere::EquirectImage& leftov
   if (leftover.width == w && leftover.height == h)
     residue.rgb = leftover.rgb;
   else
-    sphere::ResampleSolidAngle(leftover, &residue, pool_.get());
+    sphere::ResampleArea(leftover, &residue, pool_.get());
   std::vector<glm::vec3> delta;
   for (int l = upper; l >= lower; --l) {
     const LevelTables& t = Tables(l, w, h);

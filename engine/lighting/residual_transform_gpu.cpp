@@ -100,7 +100,6 @@ ResidualTransformGpu::ResidualTransformGpu(ResidualTransformOptions options)
   stats_total_ = gl::ShaderLibrary::Compute("lighting_stats_total.comp", group(software ? 32 : 256));
   resample_texture_ = gl::ShaderLibrary::Compute("lighting_resample.comp", "#define SOURCE_TEXTURE 1\n");
   resample_ = gl::ShaderLibrary::Compute("lighting_resample.comp");
-  restrict_ = gl::ShaderLibrary::Compute("lighting_resample.comp", "#define SOLID_ANGLE 1\n");
   upsample_ = gl::ShaderLibrary::Compute("lighting_upsample.comp");
   reconstruct_ = gl::ShaderLibrary::Compute("lighting_reconstruct.comp");
   keep_ = gl::ShaderLibrary::Compute("lighting_keep.comp");
@@ -237,10 +236,9 @@ void ResidualTransformGpu::CorrectCoarserLevels(const gl::Buffer& leftover, int 
     residue = &leftover == &residue_ ? &remaining_ : &residue_;
     Bind(leftover, 0);
     Bind(*residue, 1);
-    Bind(source.row_solid_angle, 3);
-    SetSize(restrict_, "uSourceSize", source.width, source.height);
-    SetSize(restrict_, "uTargetSize", grid.width, grid.height);
-    restrict_.DispatchCovering(static_cast<unsigned>(grid.width), static_cast<unsigned>(grid.height));
+    SetSize(resample_, "uSourceSize", source.width, source.height);
+    SetSize(resample_, "uTargetSize", grid.width, grid.height);
+    resample_.DispatchCovering(static_cast<unsigned>(grid.width), static_cast<unsigned>(grid.height));
     StorageBarrier();
   }
   // Each refit level's amplitudes in its own buffer (mu_[0] the upper, mu_[1] the lower), read

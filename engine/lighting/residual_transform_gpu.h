@@ -60,9 +60,10 @@ class ResidualTransformGpu {
 
   ResidualTransformOptions options_;
   std::unique_ptr<ThreadPool> pool_;  // builds the overlap lists
+  // resample_: between grids (the pyramid, the coarse correction's restriction); both weigh rows
+  // by solid angle, as sphere::ResampleArea does.
   gl::Program resample_texture_{gl::NoCreate}, resample_{gl::NoCreate}, upsample_{gl::NoCreate}, stats_{gl::NoCreate},
-      stats_total_{gl::NoCreate}, project_{gl::NoCreate}, reconstruct_{gl::NoCreate}, keep_{gl::NoCreate},
-      restrict_{gl::NoCreate};
+      stats_total_{gl::NoCreate}, project_{gl::NoCreate}, reconstruct_{gl::NoCreate}, keep_{gl::NoCreate};
   std::map<std::tuple<int, int, int>, std::unique_ptr<Tables>> tables_;
   std::vector<std::unique_ptr<Grid>> grids_;  // per level, for the last input size
   int grids_input_width_ = 0, grids_input_height_ = 0;

@@ -8,19 +8,15 @@ class ThreadPool;
 
 namespace odvr::sphere {
 
-// Area-weighted resampling to any smaller size (separable box with fractional coverage):
-// preserves the mean of every region, so a sun's energy survives downsampling.
-EquirectImage ResampleArea(const EquirectImage& image, int width, int height);
-
-// The same box, each source row weighted by its solid angle: for integer factors Σ value·dA over
-// the sphere, and over every output pixel's footprint, is preserved exactly, for signed images
-// too (a row split between two outputs is shared by its coverage). The plain box averages a
-// footprint's rows alike, which shifts the integral of an image whose rows near a pole differ (a
-// residue of both signs around a sun: by 3.6 % of bridge's mean radiance from 512 to 64 wide).
-// lighting_resample.comp's SOLID_ANGLE variant does the same.
-EquirectImage ResampleSolidAngle(const EquirectImage& image, int width, int height, ThreadPool* pool = nullptr);
+// Resampling to any smaller size by the mean over each output pixel's footprint on the sphere: a
+// separable box with fractional coverage, each source row weighted by its coverage times its
+// solid angle. Σ value·dA over the sphere, and over every footprint, is kept (exactly for integer
+// factors, where it is DownsampleBox bit for bit), for signed images too, so a sun's energy
+// survives, and so does the integral of a residue of both signs (the coarse correction's).
+// lighting_resample.comp does the same on the GPU.
+EquirectImage ResampleArea(const EquirectImage& image, int width, int height, ThreadPool* pool = nullptr);
 // The same into `target`, whose width and height say the size, its storage reused.
-void ResampleSolidAngle(const EquirectImage& image, EquirectImage* target, ThreadPool* pool = nullptr);
+void ResampleArea(const EquirectImage& image, EquirectImage* target, ThreadPool* pool = nullptr);
 
 // Bilinear magnification with longitude wrap-around (the seam is continuous) and clamped rows.
 EquirectImage UpsampleBilinear(const EquirectImage& image, int width, int height);
