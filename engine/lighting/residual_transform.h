@@ -95,8 +95,9 @@ struct ResidualTransformOptions {
   // After the last level, the two levels below it refit what every level left (a multigrid
   // V-cycle's restriction leg, finer first, each refitting what the other left): a level's fit
   // leaves a low-frequency error in its residue that the finer levels' narrow lobes do not take
-  // back. hall's glossy-20 error rose from 0.0036 to 0.0046 when level 4 was added, where the
-  // least-squares optimum's falls to 0.0016; with the refit it is 0.0014 (2048 wide, peaks).
+  // back. hall's glossy-20 error rises from 0.0041 to 0.0044 when level 4 is added, where the
+  // least-squares optimum's falls to 0.0014; with the refit it is 0.0014 (2048 wide, peaks; before
+  // the grids were resampled by solid angle: 0.0036 → 0.0046, optimum 0.0016).
   // Measured on the 18 maps at 2048 wide, 5 levels (docs/benchmarks/lighting.md):
   // - on the upper level's grid, the residue restricted by solid angle. Levels 0–1 refit too,
   //   but on their own 64-wide grid, made lab's and lobby's errors 5-10x worse: a coarse pixel's
@@ -222,7 +223,8 @@ double RegionCutoffOf(const ResidualTransformOptions& options, int level);
 // when the finest kept level is one of the narrow ones (level 4 up, λ ≥ 1449). With 3 or 4
 // levels the refit levels work on a 64- or 128-wide grid, where it moved the errors either way
 // (2048 wide, peaks: lab's diffuse error at 3 levels 0.0036 → 0.0044, hall's at 4 levels
-// 0.00085 → 0.00052) at 0.2-0.3 ms.
+// 0.00087 → 0.00051; within 1.5x of the optimum at 4 levels on 10 of 18 maps against 11 without
+// it) at 0.2-0.3 ms.
 inline bool CoarseCorrectionApplies(const ResidualTransformOptions& options, int kept_levels, bool converged) {
   return options.coarse_correction && !converged && kept_levels >= 5;
 }

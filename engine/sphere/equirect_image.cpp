@@ -66,7 +66,7 @@ EquirectImage DownsampleBox(const EquirectImage& image, int factor) {
     throw Error("downsample", "factor " + std::to_string(factor) + " does not divide " + std::to_string(image.width) +
                                   "x" + std::to_string(image.height));
   EquirectImage out(image.width / factor, image.height / factor);
-  const std::vector<float> weights = BoxRowWeights(image.height, factor);
+  const std::vector<float>& weights = BoxRowWeights(image.height, factor);
   std::vector<float> column(3 * static_cast<std::size_t>(image.width));
   for (int row = 0; row < out.height; ++row) {
     std::fill(column.begin(), column.end(), 0.f);

@@ -21,6 +21,11 @@ using odvr::testing::AddDisc;
 using odvr::testing::AngleDeg;
 using odvr::testing::SkyMap;
 
+// "diffuse glossy20 glossy200", for a failure's trace.
+std::string Describe(const LightingErrors& e) {
+  return std::to_string(e.diffuse) + " " + std::to_string(e.glossy20) + " " + std::to_string(e.glossy200);
+}
+
 TEST(ResidualTransform, ConstantFrameIsOneSgToOneThousandth) {
   const sphere::EquirectImage frame(128, 64, 0.7f);
   ResidualTransform t;
@@ -129,11 +134,7 @@ TEST(ResidualTransform, MagnifiedReconstructionComesAsCloseToTheLeastSquaresOpti
   const LightingErrors magnified = ev.Evaluate(ResidualTransform(o).Run(frame));
   o.exact_reconstruction = true;
   const LightingErrors exact = ev.Evaluate(ResidualTransform(o).Run(frame));
-  SCOPED_TRACE("least squares " + std::to_string(ls.diffuse) + " " + std::to_string(ls.glossy20) + " " +
-               std::to_string(ls.glossy200) + ", magnified " + std::to_string(magnified.diffuse) + " " +
-               std::to_string(magnified.glossy20) + " " + std::to_string(magnified.glossy200) + ", exact " +
-               std::to_string(exact.diffuse) + " " + std::to_string(exact.glossy20) + " " +
-               std::to_string(exact.glossy200));
+  SCOPED_TRACE("least squares " + Describe(ls) + ", magnified " + Describe(magnified) + ", exact " + Describe(exact));
   for (const LightingErrors& e : {magnified, exact}) {
     EXPECT_LE(e.diffuse, 1.5 * ls.diffuse);
     EXPECT_LE(e.glossy20, 1.5 * ls.glossy20);
@@ -179,11 +180,8 @@ TEST(ResidualTransform, CoarseCorrectionTakesBackTheLowFrequencyErrorOfTheFinest
   const LightingErrors plain = ev.Evaluate(ResidualTransform(o).Run(frame));
   o.levels = 4;
   const LightingErrors four_levels = ev.Evaluate(ResidualTransform(o).Run(frame));
-  SCOPED_TRACE("least squares " + std::to_string(ls.diffuse) + " " + std::to_string(ls.glossy20) + " " +
-               std::to_string(ls.glossy200) + ", corrected " + std::to_string(corrected.diffuse) + " " +
-               std::to_string(corrected.glossy20) + " " + std::to_string(corrected.glossy200) + ", plain " +
-               std::to_string(plain.diffuse) + " " + std::to_string(plain.glossy20) + " " +
-               std::to_string(plain.glossy200) + ", 4 levels glossy-20 " + std::to_string(four_levels.glossy20));
+  SCOPED_TRACE("least squares " + Describe(ls) + ", corrected " + Describe(corrected) + ", plain " + Describe(plain) +
+               ", 4 levels glossy-20 " + std::to_string(four_levels.glossy20));
   EXPECT_GT(plain.glossy20, four_levels.glossy20);  // the trap: a level added, an error grown
   EXPECT_GT(plain.diffuse, 2 * ls.diffuse);
   EXPECT_GT(plain.glossy20, 2 * ls.glossy20);
