@@ -58,8 +58,8 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
     // copied nor read again (a frame wider than the peak grid by an integer factor is
     // box-averaged to it in that pass too). Otherwise the resampled frame, ours, becomes the residue.
     if (factor > 1)
-      r.peak_detection =
-          DetectPeaksToCoarseGrid(*source, factor, options_.peaks, frame_factor, &peak_grid_, transform_.pool());
+      r.peak_detection = DetectPeaksToCoarseGrid(*source, factor, options_.peaks, frame_factor, &peak_grid_,
+                                                 transform_.pool(), &coarse_grid_);
     else
       r.peak_detection =
           source == &small ? DetectPeaks(std::move(small), options_.peaks) : DetectPeaks(frame, options_.peaks);
@@ -68,6 +68,8 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
     model = gpu ? gpu->Run(start_grid, &r.transform) : transform_.Run(std::move(start_grid), &r.transform);
     for (const auto& p : r.peak_detection.peaks) model.peaks.insert(model.peaks.end(), p.sgs.begin(), p.sgs.end());
     r.peak_detection.residue = {};
+    // The transform handed back the previous frame's grid for it: the next frame's coarse grid.
+    coarse_grid_ = std::move(r.peak_detection.coarse);
     r.peak_detection.coarse = {};
   } else {
     model = gpu ? gpu->Run(*source, &r.transform) : transform_.Run(*source, &r.transform);

@@ -47,7 +47,8 @@ class LightingBuilder {
  private:
   LightingOptions options_;
   ResidualTransform transform_;
-  sphere::EquirectImage peak_grid_;  // the detector's grid of a wider frame, reused every frame
+  sphere::EquirectImage peak_grid_;    // the detector's grid of a wider frame, reused every frame
+  sphere::EquirectImage coarse_grid_;  // storage for the detector's coarse grid, handed back every frame
 };
 
 }  // namespace odvr::lighting

@@ -232,7 +232,12 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
                sphere::EquirectImage* coarse = nullptr, const sphere::EquirectImage* source = nullptr,
                int source_factor = 1, ThreadPool* pool = nullptr) {
   FrameScan s;
-  if (coarse) *coarse = sphere::EquirectImage(frame.width / coarse_factor, frame.height / coarse_factor);
+  if (coarse) {
+    // Every cell is written by the pass: storage the caller keeps across frames is not zeroed.
+    coarse->width = frame.width / coarse_factor;
+    coarse->height = frame.height / coarse_factor;
+    coarse->rgb.resize(3 * coarse->pixel_count());
+  }
   const int w = frame.width, h = frame.height;
   s.block = block;
   s.blocks_wide = (w + block - 1) / block;
@@ -419,7 +424,8 @@ std::vector<double> SolidAngles(int w, int h) {
 // residue). Without `keep_residue` the residue is left empty unless the frame is LDR.
 PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
                      const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
-                     const sphere::EquirectImage* source = nullptr, int source_factor = 1, ThreadPool* pool = nullptr);
+                     const sphere::EquirectImage* source = nullptr, int source_factor = 1, ThreadPool* pool = nullptr,
+                     sphere::EquirectImage* coarse_storage = nullptr);
 
 // The coarse cells holding a peak's pixels, recomputed from the frame with those pixels at
 // min(I, b) (what the residue holds there) in DownsampleBox's order: `taken` lists (pixel, its
@@ -483,7 +489,8 @@ PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptio
 
 PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int coarse_factor,
                                       const PeakDetectorOptions& options, int frame_factor,
-                                      sphere::EquirectImage* grid_storage, ThreadPool* pool) {
+                                      sphere::EquirectImage* grid_storage, ThreadPool* pool,
+                                      sphere::EquirectImage* coarse_storage) {
   const auto start = std::chrono::steady_clock::now();
   if (frame_factor < 1 || frame.width % frame_factor || frame.height % frame_factor)
     throw Error("peak detection", "frame factor " + std::to_string(frame_factor) + " does not divide " +
@@ -492,23 +499,26 @@ PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int co
   if (coarse_factor < 2 || w % coarse_factor || h % coarse_factor)
     throw Error("peak detection", "coarse factor " + std::to_string(coarse_factor) + " does not divide " +
                                       std::to_string(w) + "x" + std::to_string(h));
-  if (frame_factor == 1) return Detect(frame, nullptr, false, options, start, coarse_factor, nullptr, 1, pool);
+  if (frame_factor == 1)
+    return Detect(frame, nullptr, false, options, start, coarse_factor, nullptr, 1, pool, coarse_storage);
   sphere::EquirectImage local;
   sphere::EquirectImage& grid = grid_storage ? *grid_storage : local;
   // Filled by the scan. Kept by the caller across frames, its pages are not faulted in (and
   // given back) for every frame: at 2048 wide that was a millisecond of the build.
   if (grid.width != w || grid.height != h || grid.rgb.size() != 3 * static_cast<std::size_t>(w) * h)
     grid = sphere::EquirectImage(w, h);
-  return Detect(grid, &grid, false, options, start, coarse_factor, &frame, frame_factor, pool);
+  return Detect(grid, &grid, false, options, start, coarse_factor, &frame, frame_factor, pool, coarse_storage);
 }
 
 namespace {
 
 PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
                      const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
-                     const sphere::EquirectImage* source, int source_factor, ThreadPool* pool) {
+                     const sphere::EquirectImage* source, int source_factor, ThreadPool* pool,
+                     sphere::EquirectImage* coarse_storage) {
   options.Check();
   PeakDetection out;
+  if (coarse_factor > 1 && coarse_storage) out.coarse = std::move(*coarse_storage);
   const int w = input.width, h = input.height;
   if (w < 4 || h < 2) throw Error("peak detection", "frame too small");
   const std::vector<double> da = SolidAngles(w, h);

@@ -81,9 +81,12 @@ PeakDetection DetectPeaks(sphere::EquirectImage&& frame, const PeakDetectorOptio
 // same pass, into `grid_storage` when given (scratch a caller keeps across frames), and
 // `coarse_factor` applies to that grid.
 // The pass over the frame runs in bands of rows on `pool` when given (the same result).
+// `coarse_storage`, when given, is moved into PeakDetection::coarse to be filled (storage a caller
+// hands back after each frame, so the grid's pages are neither faulted in nor zeroed every frame).
 PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int coarse_factor,
                                       const PeakDetectorOptions& options = {}, int frame_factor = 1,
-                                      sphere::EquirectImage* grid_storage = nullptr, ThreadPool* pool = nullptr);
+                                      sphere::EquirectImage* grid_storage = nullptr, ThreadPool* pool = nullptr,
+                                      sphere::EquirectImage* coarse_storage = nullptr);
 
 // The detector's connected components of bright pixels (HDR: luminance > threshold; LDR: every
 // channel >= threshold), each as ascending pixel indices row·width + col, found through the

@@ -41,13 +41,22 @@ bool HasBadPixels(const float* v, std::size_t n) {
   return bad;
 }
 
+// `image` as a width × height image whose pixels the caller writes every one of: storage kept
+// across frames is reused as it is, neither given back nor zeroed (a fresh 512×256 image per pass
+// cost its zeroing, and often its page faults, on the calling thread while the pool waited).
+void Reshape(sphere::EquirectImage* image, int width, int height) {
+  image->width = width;
+  image->height = height;
+  image->rgb.resize(3 * image->pixel_count());
+}
+
 // The finest working grid as `factor`×`factor` box means of a clean input (DownsampleBox bit
 // for bit), in row bands on the pool, each input row checked for bad pixels while it is in
 // cache: at 2048 wide the frame is 25 MB, and the check and the box each read all of it on
 // one thread. False when a pixel is bad (`out` is then not the grid).
 bool DownsampleBoxIfClean(const sphere::EquirectImage& input, int factor, sphere::EquirectImage* out,
                           ThreadPool* pool) {
-  *out = sphere::EquirectImage(input.width / factor, input.height / factor);
+  Reshape(out, input.width / factor, input.height / factor);
   const std::vector<float>& weights = sphere::BoxRowWeights(input.height, factor);
   std::atomic<bool> bad{false};
   pool->ParallelFor(
@@ -296,7 +305,7 @@ void ResidueOfCoarserLevels(const std::vector<const LevelTables*>& tables,
                             const sphere::EquirectImage& target, sphere::EquirectImage* residue, ThreadPool* pool) {
   const int width = target.width, stride = (width + 3) / 4 * 4;
   const bool avx2 = use_avx2;
-  *residue = sphere::EquirectImage(width, target.height);
+  Reshape(residue, width, target.height);
   long entries = 0;
   for (const LevelTables* t : tables) entries += t->srbf_begin.back();
   pool->ParallelFor(
@@ -334,17 +343,18 @@ glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
   return sum / (4 * sphere::kPi);
 }
 
-sphere::EquirectImage Subtract(const sphere::EquirectImage& a, const sphere::EquirectImage& b, ThreadPool* pool) {
-  sphere::EquirectImage out(a.width, a.height);
+// out = a − b (`out` neither of them).
+void Subtract(const sphere::EquirectImage& a, const sphere::EquirectImage& b, sphere::EquirectImage* out,
+              ThreadPool* pool) {
+  Reshape(out, a.width, a.height);
   const std::size_t row = 3 * static_cast<std::size_t>(a.width);
   pool->ParallelFor(
       a.height,
       [&](long begin, long end) {
         for (std::size_t i = static_cast<std::size_t>(begin) * row; i < static_cast<std::size_t>(end) * row; ++i)
-          out.rgb[i] = a.rgb[i] - b.rgb[i];
+          out->rgb[i] = a.rgb[i] - b.rgb[i];
       },
       16);
-  return out;
 }
 
 }  // namespace
@@ -555,30 +565,45 @@ LevelTables BuildLevelTables(int level, int width, int height, double region_cut
 
 namespace {
 
-// Σ (|r|+|g|+|b|) dA and Σ (r²+g²+b²) dA in one read of the image, each row summed in four
+// Σ (|r|+|g|+|b|) dA and Σ (r²+g²+b²) dA in one read of the image, each row summed in eight
 // double lanes per measure: one chain per row was latency-bound, and the transform takes both
-// measures of two residues per level (at 512×256, about 2 ms of the 5-level transform). The
-// lanes change only the double summation order.
+// measures of two residues per level. The lanes change only the double summation order. `kWide`
+// holds the lanes in 256-bit registers (the AVX2 instantiation): the same accumulators added in
+// the same order, so the same bits; with four 128-bit lanes per measure these sums were 5 % of
+// the 5-level transform's time at 2048 wide.
 struct AbsAndSquareSums {
   double abs = 0, square = 0;
 };
 
-// One row's Σ|c| and Σc² over its channels, each in four double lanes.
-AbsAndSquareSums RowAbsAndSquareSums(const float* p, int n) {
-  D2 abs_lanes[2] = {}, square_lanes[2] = {};
+template <bool kWide>
+[[gnu::always_inline]] inline AbsAndSquareSums RowAbsAndSquareSumsOf(const float* p, int n) {
+  std::conditional_t<kWide, D4[2], D2[4]> abs_lanes = {}, square_lanes = {};
+  constexpr int kMask = 0x7fffffff;
   int i = 0;
-  for (; i + 4 <= n; i += 4) {
-    const V4 v = Load4(p + i);
-    const V4 a = reinterpret_cast<V4>(reinterpret_cast<I4>(v) & I4{0x7fffffff, 0x7fffffff, 0x7fffffff, 0x7fffffff});
-    abs_lanes[0] += Low2(a);
-    abs_lanes[1] += High2(a);
-    const D2 lo = Low2(v), hi = High2(v);
-    square_lanes[0] += lo * lo;
-    square_lanes[1] += hi * hi;
+  for (; i + 8 <= n; i += 8) {
+    for (int half = 0; half < 2; ++half) {
+      const V4 v = Load4(p + i + 4 * half);
+      const V4 a = reinterpret_cast<V4>(reinterpret_cast<I4>(v) & I4{kMask, kMask, kMask, kMask});
+      if constexpr (kWide) {
+        const D4 ad = __builtin_convertvector(a, D4), vd = __builtin_convertvector(v, D4);
+        abs_lanes[half] += ad;
+        square_lanes[half] += vd * vd;
+      } else {
+        abs_lanes[2 * half] += Low2(a);
+        abs_lanes[2 * half + 1] += High2(a);
+        const D2 lo = Low2(v), hi = High2(v);
+        square_lanes[2 * half] += lo * lo;
+        square_lanes[2 * half + 1] += hi * hi;
+      }
+    }
   }
+  // Lane l of the eight, in the order of the floats of each group of eight.
+  const auto lane = [](const auto& lanes, int l) { return kWide ? lanes[l / 4][l % 4] : lanes[l / 2][l % 2]; };
   AbsAndSquareSums sums;
-  sums.abs = (abs_lanes[0][0] + abs_lanes[0][1]) + (abs_lanes[1][0] + abs_lanes[1][1]);
-  sums.square = (square_lanes[0][0] + square_lanes[0][1]) + (square_lanes[1][0] + square_lanes[1][1]);
+  for (int l = 0; l < 8; ++l) {
+    sums.abs += lane(abs_lanes, l);
+    sums.square += lane(square_lanes, l);
+  }
   for (; i < n; ++i) {
     sums.abs += std::abs(p[i]);
     sums.square += static_cast<double>(p[i]) * p[i];
@@ -586,13 +611,19 @@ AbsAndSquareSums RowAbsAndSquareSums(const float* p, int n) {
   return sums;
 }
 
+AbsAndSquareSums RowAbsAndSquareSums(const float* p, int n) { return RowAbsAndSquareSumsOf<false>(p, n); }
+[[gnu::target("avx2")]] AbsAndSquareSums RowAbsAndSquareSumsAvx2(const float* p, int n) {
+  return RowAbsAndSquareSumsOf<true>(p, n);
+}
+
 // The rows on the pool when there is one (the rest of the transform's passes are, and a serial
 // pass leaves the other core idle), added up in row order either way, so the same sums.
 AbsAndSquareSums SphereAbsAndSquareSums(const sphere::EquirectImage& image, ThreadPool* pool = nullptr) {
   std::vector<AbsAndSquareSums> rows(static_cast<std::size_t>(image.height));
+  const auto row_sums = use_avx2 ? RowAbsAndSquareSumsAvx2 : RowAbsAndSquareSums;
   const auto body = [&](long begin, long end) {
     for (long row = begin; row < end; ++row)
-      rows[static_cast<std::size_t>(row)] = RowAbsAndSquareSums(image.at(0, static_cast<int>(row)), image.width * 3);
+      rows[static_cast<std::size_t>(row)] = row_sums(image.at(0, static_cast<int>(row)), image.width * 3);
   };
   if (pool && image.pixel_count() * 3 >= static_cast<std::size_t>(kSerialEntries))
     pool->ParallelFor(image.height, body, 8);
@@ -713,11 +744,18 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
   CheckTransformInput(input.width, input.height);
   TransformReport report;
   SgLighting model;
+  // One run at a time: the images below are kept across frames (Reshape), and the pool takes
+  // one caller at a time anyway.
+  std::lock_guard run_lock(run_mutex_);
+  Scratch& scratch = scratch_;
 
   // Working grids, finest first, each resampled from the next finer one (area-preserving).
   const int levels = options_.levels;
-  std::vector<sphere::EquirectImage> grids(static_cast<std::size_t>(levels));
-  const auto [finest_w, finest_h] = GridOf(levels - 1, input.width, input.height);
+  std::vector<sphere::EquirectImage>& grids = scratch.grids;
+  grids.resize(static_cast<std::size_t>(levels));
+  // `input` may be `*owned`, whose storage is swapped for a grid below: its size, kept here.
+  const int input_w = input.width, input_h = input.height;
+  const auto [finest_w, finest_h] = GridOf(levels - 1, input_w, input_h);
   const int box = input.width / finest_w;
   const bool boxed = box > 1 && input.width == box * finest_w && input.height == box * finest_h &&
                      DownsampleBoxIfClean(input, box, &grids.back(), pool_.get());
@@ -731,21 +769,32 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
       spdlog::warn("lighting input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
       source = &clean;
     }
-    // The builder hands over the detector's grid, already the finest: taken, not copied.
-    if (!dirty && owned && input.width == finest_w && input.height == finest_h)
-      grids.back() = std::move(*owned);
-    else
-      grids.back() = sphere::ResampleArea(*source, finest_w, finest_h);
+    // The builder hands over the detector's grid, already the finest: taken, not copied (the
+    // caller gets the previous frame's storage back, to fill next time).
+    if (!dirty && owned && input.width == finest_w && input.height == finest_h) {
+      std::swap(grids.back(), *owned);
+    } else {
+      Reshape(&grids.back(), finest_w, finest_h);
+      if (finest_w == source->width && finest_h == source->height)
+        grids.back().rgb = source->rgb;
+      else
+        sphere::ResampleArea(*source, &grids.back(), pool_.get());
+    }
   }
   for (int s = levels - 2; s >= 0; --s) {
-    const auto [w, h] = GridOf(s, input.width, input.height);
+    const auto [w, h] = GridOf(s, input_w, input_h);
     const sphere::EquirectImage& finer = grids[static_cast<std::size_t>(s) + 1];
     sphere::EquirectImage& grid = grids[static_cast<std::size_t>(s)];
     // Halving (the grids are 32·2^s wide) in row bands on the pool, DownsampleBox bit for bit.
     const int factor = finer.width / w;
     if (!(factor > 1 && finer.width == factor * w && finer.height == factor * h &&
-          DownsampleBoxIfClean(finer, factor, &grid, pool_.get())))
-      grid = sphere::ResampleArea(finer, w, h);
+          DownsampleBoxIfClean(finer, factor, &grid, pool_.get()))) {
+      Reshape(&grid, w, h);
+      if (w == finer.width && h == finer.height)
+        grid.rgb = finer.rgb;
+      else
+        sphere::ResampleArea(finer, &grid, pool_.get());
+    }
   }
   report.prepare_ms = MsSince(start);
 
@@ -762,8 +811,9 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
   if (options_.constant_term) model.constant = glm::vec3(MeanOf(finest));
 
   // R: reconstruction of everything fitted so far, on the current level's grid.
-  const auto [w0, h0] = GridOf(0, input.width, input.height);
-  sphere::EquirectImage recon(w0, h0);
+  const auto [w0, h0] = GridOf(0, input_w, input_h);
+  sphere::EquirectImage& recon = scratch.recon;
+  Reshape(&recon, w0, h0);
   for (std::size_t i = 0; i < recon.rgb.size(); i += 3) {
     recon.rgb[i] = model.constant.x;
     recon.rgb[i + 1] = model.constant.y;
@@ -776,25 +826,30 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
 
   // The residue a kept level left, on its grid: the next level's residue when it works on the
   // same grid (levels 0 and 1 share a 64-wide one), which then need not be evaluated again.
-  sphere::EquirectImage carried;
+  sphere::EquirectImage& carried = scratch.carried;
   // What every kept level left, for the coarse correction: the last kept level's residue, or
   // the residue entering a rejected level (on that finer grid).
-  sphere::EquirectImage leftover;
+  sphere::EquirectImage& leftover = scratch.leftover;
+  bool has_carried = false, has_leftover = false;
+  sphere::EquirectImage& residue = scratch.residue;
+  sphere::EquirectImage& remaining = scratch.remaining;
   bool converged = false;
   for (int s = 0; s < levels; ++s) {
     const auto level_start = Clock::now();
-    const auto [w, h] = GridOf(s, input.width, input.height);
-    const bool same_grid = options_.exact_reconstruction && s > 0 && carried.width == w && carried.height == h;
+    const auto [w, h] = GridOf(s, input_w, input_h);
+    const bool same_grid =
+        options_.exact_reconstruction && s > 0 && has_carried && carried.width == w && carried.height == h;
     if (s > 0 && !same_grid && !options_.exact_reconstruction) {
       // R_{<s} on this grid: the coarser reconstruction magnified plus the previous level
       // evaluated here (see exact_reconstruction).
-      recon = sphere::MagnifyLagrange(recon, w, h, pool_.get());
+      sphere::MagnifyLagrange(recon, w, h, &scratch.magnified, pool_.get());
+      std::swap(recon, scratch.magnified);
       Reconstruct(Tables(previous_level, w, h), previous_mu, 1.0f, recon, &recon, pool_.get());
     }
     const sphere::EquirectImage& target = grids[static_cast<std::size_t>(s)];
-    sphere::EquirectImage residue;
     if (same_grid) {
-      residue = std::move(carried);
+      std::swap(residue, carried);
+      has_carried = false;
     } else if (options_.exact_reconstruction && s > 0) {
       // R_{<s} on this grid: every coarser level evaluated here (their overlap lists on this
       // grid are built once, like the level's own).
@@ -802,7 +857,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
       for (std::size_t l = 0; l < all_mu.size(); ++l) coarser.push_back(&Tables(static_cast<int>(l), w, h));
       ResidueOfCoarserLevels(coarser, all_mu, model.constant, target, &residue, pool_.get());
     } else {
-      residue = Subtract(target, recon, pool_.get());
+      Subtract(target, recon, &residue, pool_.get());
     }
     const AbsAndSquareSums sums_before = SphereAbsAndSquareSums(residue, pool_.get());
     const double before = MeanAbsOf(sums_before) / report.mean_radiance;
@@ -816,7 +871,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     const LevelTables& t = Tables(s, w, h);
     std::vector<glm::vec3> mu, delta;
     Project(t, residue, options_.normalization, &mu, pool_.get());
-    sphere::EquirectImage remaining(w, h);
+    Reshape(&remaining, w, h);
     Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
       Project(t, remaining, options_.normalization, &delta, pool_.get());
@@ -860,7 +915,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
       lr.ms = MsSince(level_start);
       report.levels.push_back(lr);
       report.stop_reason = "level " + std::to_string(s) + " does not reduce the residue";
-      leftover = std::move(residue);
+      std::swap(leftover, residue);
+      has_leftover = true;
       break;
     }
     lr.residue_after = after;
@@ -876,7 +932,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     if (options_.exact_reconstruction) all_mu.push_back(mu);
     previous_mu = std::move(mu);
     previous_level = s;
-    carried = std::move(remaining);
+    std::swap(carried, remaining);
+    has_carried = true;
     lr.ms = MsSince(level_start);
     report.levels.push_back(lr);
     if (after < options_.stop_threshold) {
@@ -887,7 +944,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
   if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
   if (CoarseCorrectionApplies(options_, static_cast<int>(model.levels.size()), converged)) {
     const auto correction_start = Clock::now();
-    CorrectCoarserLevels(leftover.rgb.empty() ? carried : leftover, input.width, input.height, keep, &model);
+    CorrectCoarserLevels(has_leftover ? leftover : carried, input_w, input_h, keep, &model);
     report.correction_ms = MsSince(correction_start);
   }
 

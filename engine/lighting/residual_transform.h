@@ -197,6 +197,13 @@ class ResidualTransform {
   std::map<std::tuple<int, int, int>, std::unique_ptr<LevelTables>> tables_;
   std::mutex correction_mutex_;
   sphere::EquirectImage correction_residue_;
+  // Run's images, kept across frames (see CorrectCoarserLevels).
+  struct Scratch {
+    std::vector<sphere::EquirectImage> grids;
+    sphere::EquirectImage recon, magnified, residue, remaining, carried, leftover;
+  };
+  std::mutex run_mutex_;
+  Scratch scratch_;
 };
 
 // The pieces of the transform's definition that the CPU and GPU paths share, so that their

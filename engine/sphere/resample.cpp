@@ -250,12 +250,24 @@ void MagnifyRowsPlain(const EquirectImage& image, const LagrangePlan& plan, long
 }  // namespace
 
 EquirectImage MagnifyLagrange(const EquirectImage& image, int width, int height, ThreadPool* pool) {
+  EquirectImage out;
+  MagnifyLagrange(image, width, height, &out, pool);
+  return out;
+}
+
+void MagnifyLagrange(const EquirectImage& image, int width, int height, EquirectImage* target, ThreadPool* pool) {
+  if (target == &image) throw Error("resample", "magnification cannot write over its input");
   if (width < image.width || height < image.height) throw Error("resample", "magnification only enlarges");
   const int factor = width / image.width;
   if (width != factor * image.width || height != factor * image.height || image.width % 2 != 0 ||
-      image.width < kLagrangeTaps || image.height < kLagrangeTaps / 2)
-    return UpsampleBilinear(image, width, height);
-  if (factor == 1) return image;
+      image.width < kLagrangeTaps || image.height < kLagrangeTaps / 2) {
+    *target = UpsampleBilinear(image, width, height);
+    return;
+  }
+  if (factor == 1) {
+    *target = image;
+    return;
+  }
   // Output sample f·j + φ lies at input coordinate j + (φ + 0.5)/f − 0.5: its nodes start
   // kLagrangeLeft before j + offset[φ], with weights[φ], along either axis.
   LagrangePlan plan;
@@ -265,7 +277,11 @@ EquirectImage MagnifyLagrange(const EquirectImage& image, int width, int height,
     plan.offset.push_back(static_cast<int>(std::floor(x)));
     plan.weights.push_back(LagrangeWeights(x - std::floor(x)));
   }
-  EquirectImage out(image.width * factor, image.height * factor);
+  // Every pixel is written below: the storage is reused as it is, not zeroed.
+  EquirectImage& out = *target;
+  out.width = width;
+  out.height = height;
+  out.rgb.resize(3 * out.pixel_count());
   static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
   const auto rows = [&](long begin, long end) {
     (avx2 ? MagnifyRowsAvx2 : MagnifyRowsPlain)(image, plan, begin, end, &out);
@@ -274,7 +290,6 @@ EquirectImage MagnifyLagrange(const EquirectImage& image, int width, int height,
     pool->ParallelFor(out.height, rows, 8);
   else
     rows(0, out.height);
-  return out;
 }
 
 }  // namespace odvr::sphere

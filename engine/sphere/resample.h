@@ -29,5 +29,9 @@ EquirectImage UpsampleBilinear(const EquirectImage& image, int width, int height
 // image's, or the image is narrower than 6 pixels, of odd width or under 3 rows, it is
 // UpsampleBilinear's (lighting_upsample.comp makes the same choice).
 EquirectImage MagnifyLagrange(const EquirectImage& image, int width, int height, ThreadPool* pool = nullptr);
+// The same into `target` (not `image`), reusing its storage: the lighting transform magnifies into
+// images it keeps across frames.
+void MagnifyLagrange(const EquirectImage& image, int width, int height, EquirectImage* target,
+                     ThreadPool* pool = nullptr);
 
 }  // namespace odvr::sphere

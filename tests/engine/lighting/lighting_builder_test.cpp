@@ -310,5 +310,38 @@ TEST(LightingBuilder, WideFrameWithoutPeaksGoesToTheTransformWhole) {
   }
 }
 
+TEST(LightingBuilder, ImagesKeptAcrossFramesCarryNothingOver) {
+  // The builder, the detector and the transform keep their grids and residues from frame to
+  // frame (reshaped, not zeroed): a builder that has seen other frames, of other sizes and with
+  // bad pixels, must give each frame the model a fresh one gives it, bit for bit.
+  std::vector<sphere::EquirectImage> frames;
+  for (int width : {2048, 512, 1024, 2048}) {
+    sphere::EquirectImage img = SkyMap(width, width / 2);
+    AddDisc(&img, {0.5, 0.6, 0.3 * width / 1024.0}, 0.01, 30000.f);
+    frames.push_back(std::move(img));
+  }
+  frames[2].rgb[7] = std::nanf("");  // through the clamping paths once
+  for (bool peaks : {true, false}) {
+    SCOPED_TRACE(peaks);
+    LightingOptions options;
+    options.detect_peaks = peaks;
+    options.transform.stop_threshold = 0;
+    LightingBuilder reused(options);
+    for (std::size_t f = 0; f < frames.size(); ++f) {
+      SCOPED_TRACE(f);
+      const SgLighting a = reused.Build(frames[f]);
+      const SgLighting b = LightingBuilder(options).Build(frames[f]);
+      EXPECT_EQ(a.constant, b.constant);
+      ASSERT_EQ(a.levels.size(), b.levels.size());
+      for (std::size_t l = 0; l < a.levels.size(); ++l) {
+        ASSERT_EQ(a.levels[l].indices, b.levels[l].indices);
+        ASSERT_EQ(a.levels[l].amplitudes, b.levels[l].amplitudes) << "level " << l;
+      }
+      ASSERT_EQ(a.peaks.size(), b.peaks.size());
+      for (std::size_t i = 0; i < a.peaks.size(); ++i) EXPECT_EQ(a.peaks[i].amplitude, b.peaks[i].amplitude);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace odvr::lighting

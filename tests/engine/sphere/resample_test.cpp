@@ -205,5 +205,20 @@ TEST(Resample, LagrangeMagnificationKeepsAConstantAndFallsBackToBilinear) {
   EXPECT_THROW(MagnifyLagrange(constant, 8, 4), Error);
 }
 
+TEST(Resample, LagrangeMagnificationIntoKeptStorageWritesEveryPixel) {
+  // The lighting transform magnifies into images it keeps across frames: whatever the target
+  // held (another size, NaNs), the result is the returning overload's, bit for bit.
+  const EquirectImage coarse = SampledSg(glm::normalize(glm::dvec3(0.3, 0.9, -0.2)), 5.5, 64, 32);
+  for (const auto& [w, h] : {std::pair{128, 64}, std::pair{256, 128}, std::pair{96, 48}}) {
+    EquirectImage target(300, 7, std::nanf(""));
+    MagnifyLagrange(coarse, w, h, &target);
+    EXPECT_EQ(target.width, w);
+    EXPECT_EQ(target.height, h);
+    EXPECT_EQ(target.rgb, MagnifyLagrange(coarse, w, h).rgb) << w;
+  }
+  EquirectImage same = coarse;
+  EXPECT_THROW(MagnifyLagrange(same, 128, 64, &same), Error);
+}
+
 }  // namespace
 }  // namespace odvr::sphere
