@@ -28,6 +28,7 @@ struct MaterialTerm {
   vec4 color;
   vec4 params;
 };
+// Per material uTermsPerMaterial BRDF terms, then one whose colour is the radiance it emits.
 layout(std430, binding = 5) readonly buffer Materials { MaterialTerm terms[]; };
 layout(std430, binding = 6) writeonly buffer Counts { uvec4 counts[]; };  // 0, shadow rays, 0, samples
 layout(std430, binding = 8) readonly buffer EnvRows { float rowCdf[]; };     // H + 1, rowCdf[H] = 1
@@ -41,6 +42,7 @@ uniform float uFocal;
 uniform mat3 uEnvFromWorld;
 uniform int uTermsPerMaterial;
 uniform int uMaterialCount;
+int materialRow(int material) { return material * (uTermsPerMaterial + 1); }
 uniform float uSurfaceOffset;
 uniform int uGround;
 uniform vec2 uGroundCenter;
@@ -320,7 +322,7 @@ void main() {
     vec3 origin = p + uSurfaceOffset * n;
     float alpha = 0.0;
     for (int k = 0; k < uTermsPerMaterial; ++k) {
-      MaterialTerm term = terms[material * uTermsPerMaterial + k];
+      MaterialTerm term = terms[materialRow(material) + k];
       alpha = max(alpha, glossyAlpha(term.type.x, term.params, gn.w));
     }
     float q_ggx = alpha > 0.0 ? 0.5 * (1.0 - kEnvShare) : 0.0;
@@ -336,7 +338,7 @@ void main() {
       if (!(pdf > 0.0)) continue;
       vec3 f = vec3(0.0);
       for (int k = 0; k < uTermsPerMaterial; ++k) {
-        MaterialTerm term = terms[material * uTermsPerMaterial + k];
+        MaterialTerm term = terms[materialRow(material) + k];
         f += evalTerm(term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wi, wo);
       }
       vec3 value = f * envRadiance(wi) * (cos_i / pdf);
@@ -344,7 +346,7 @@ void main() {
       sum += value * (shadowRay(p, n, origin, wi) * groundLit(origin, wi));
       count.y += 1u;
     }
-    car = vec4(sum / float(max(uSamples, 1)), 1.0);
+    car = vec4(sum / float(max(uSamples, 1)) + terms[materialRow(material) + uTermsPerMaterial].color.rgb, 1.0);
   } else if (uGround != 0) {
     vec3 dir = normalize(uWorldFromCamera * vec3((vec2(pixel) + 0.5 - 0.5 * vec2(uSize)) / uFocal, 1.0));
     float t = dir.y < 0.0 ? -uCameraPosition.y / dir.y : -1.0;

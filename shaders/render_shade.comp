@@ -32,6 +32,7 @@ struct MaterialTerm {
   vec4 color;
   vec4 params;
 };
+// Per material uTermsPerMaterial BRDF terms, then one whose colour is the radiance it emits.
 layout(std430, binding = 5) readonly buffer Materials { MaterialTerm terms[]; };
 layout(std430, binding = 6) writeonly buffer Counts { uvec4 counts[]; };  // lobes, cones, triple products, SGs
 // material::ClampedCosineTable over (λ, z = n·c), row-major, its two blocks interleaved:
@@ -54,6 +55,7 @@ uniform float uConeCoverage;
 uniform float uMaxConeHalfAngle;
 uniform int uTermsPerMaterial;
 uniform int uMaterialCount;
+int materialRow(int material) { return material * (uTermsPerMaterial + 1); }
 uniform float uSurfaceOffset;  // metres along the normal where the car's cones start
 uniform int uGround;
 uniform vec2 uGroundCenter;  // xz
@@ -463,7 +465,7 @@ void main() {
     tracePeakCones(gOrigin, gPeakVisibility, gCount);
     for (int k = 0; k < kMaxPeaks; ++k) gPeakSum[k] = vec3(0.0);
     for (int k = 0; k < uTermsPerMaterial; ++k) {
-      MaterialTerm term = terms[material * uTermsPerMaterial + k];
+      MaterialTerm term = terms[materialRow(material) + k];
       TermLobes t = describeTerm(term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wo);
       for (int i = 0; i < t.count; ++i) {
         vec3 axis, weight;
@@ -484,7 +486,7 @@ void main() {
     if (uPeakCones != 0)
       for (int k = 0; k < kMaxPeaks; ++k)
         if (k < uPeakCount) gRadiance += max(peaks[k].amplitude.xyz * gPeakSum[k], vec3(0.0)) * gPeakVisibility[k];
-    car = vec4(gRadiance, 1.0);
+    car = vec4(gRadiance + terms[materialRow(material) + uTermsPerMaterial].color.rgb, 1.0);
   } else if (uGround != 0) {
     vec3 dir = normalize(uWorldFromCamera * vec3((vec2(pixel) + 0.5 - 0.5 * vec2(uSize)) / uFocal, 1.0));
     float t = dir.y < 0.0 ? -uCameraPosition.y / dir.y : -1.0;

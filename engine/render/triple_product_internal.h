@@ -74,6 +74,7 @@ struct ReferenceInputs {
   const GBuffer* gbuffer = nullptr;
   PinholeCamera camera;
   const MaterialTerms* materials = nullptr;
+  const std::vector<glm::vec3>* emission = nullptr;  // per material (nullptr: none emits)
   const PreparedLighting* lighting = nullptr;
   const lighting::OverlapBins* bins = nullptr;
   const visibility::VoxelGrid* grid = nullptr;  // nullptr: nothing occludes

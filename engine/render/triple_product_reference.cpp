@@ -283,6 +283,8 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
             for (std::size_t k = 0; k < peak_sum.size(); ++k)
               radiance +=
                   glm::max(glm::dvec3(in.lighting->peaks[k].amplitude) * peak_sum[k], glm::dvec3(0)) * peak_v[k];
+            if (in.emission && static_cast<std::size_t>(material) < in.emission->size())
+              radiance += glm::dvec3((*in.emission)[static_cast<std::size_t>(material)]);
             for (int c = 0; c < 3; ++c) result->car.rgb[3 * idx + c] = static_cast<float>(radiance[c]);
             result->car_alpha[idx] = 1.f;
           } else if (in.options.ground) {

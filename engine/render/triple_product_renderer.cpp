@@ -379,6 +379,7 @@ struct TripleProductRenderer::Impl {
   std::map<std::pair<int, bool>, gl::Texture> textures;  // (image, sRGB)
   gl::Texture white{gl::NoCreate};
   detail::MaterialTerms material_terms;
+  std::vector<glm::vec3> emission;  // per material: the radiance it emits (glTF emissive)
   gl::Buffer terms_buffer{gl::NoCreate}, ndf_table{gl::NoCreate}, cosine_table{gl::NoCreate};
 
   std::vector<glm::vec3> triangles;  // world
@@ -595,21 +596,27 @@ int TripleProductRenderer::peaks_without_cone() const {
 
 void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides) {
   Impl& im = *impl_;
-  // Material terms: the glTF metallic-roughness unless an override names the material.
+  // Material terms: the glTF metallic-roughness unless an override names the material. Each
+  // material's row in the buffer: its kTermsPerMaterial terms, then one whose colour is the
+  // radiance it emits: the glTF material's, none under an override, which replaces the whole
+  // material (as the Cycles references' paint overrides do: bench render's paints cover the lamps).
   std::vector<GpuTerm> gpu_terms;
   detail::MaterialTerms material_terms;
+  im.emission.clear();
   for (const auto& mat : im.materials) {
     std::vector<material::Brdf> terms;
     for (const auto& o : overrides)
       if (o.material.empty() || Lower(mat.name).find(Lower(o.material)) != std::string::npos) terms = o.brdfs;
     if (terms.size() > static_cast<std::size_t>(kTermsPerMaterial))
       throw Error("material override", "at most " + std::to_string(kTermsPerMaterial) + " BRDF terms");
-    std::vector<GpuTerm> row(kTermsPerMaterial);
+    std::vector<GpuTerm> row(kTermsPerMaterial + 1);
     if (terms.empty()) {
       row[0].type.x = kGltf;
     } else {
       for (std::size_t k = 0; k < terms.size(); ++k) row[k] = ToGpuTerm(terms[k]);
     }
+    im.emission.push_back(terms.empty() ? mat.emission() : glm::vec3(0));
+    row.back().color = glm::vec4(im.emission.back(), 0);
     gpu_terms.insert(gpu_terms.end(), row.begin(), row.end());
     material_terms.push_back(std::move(terms));
   }
@@ -1005,6 +1012,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     in.gbuffer = &g;
     in.camera = camera;
     in.materials = &im.material_terms;
+    in.emission = &im.emission;
     in.lighting = &im.lighting;
     in.bins = im.bins.get();
     in.grid = geometry ? im.cpu_grid.get() : nullptr;

@@ -75,7 +75,8 @@ struct PinholeCamera {
 };
 
 // Replaces the glTF materials whose name contains `material` (case-insensitive; empty: every
-// material) by the sum of `brdfs` (one or two terms).
+// material) by the sum of `brdfs` (one or two terms). The whole material: a replaced one emits
+// nothing (the others keep their glTF emission).
 struct MaterialOverride {
   std::string material;
   std::vector<material::Brdf> brdfs;

@@ -609,6 +609,14 @@ class SceneBuilder {
     if (m.emissiveFactor.size() == 3)
       out.emissive_factor =
           glm::vec3(float(m.emissiveFactor[0]), float(m.emissiveFactor[1]), float(m.emissiveFactor[2]));
+    if (!finite01(out.emissive_factor.r) || !finite01(out.emissive_factor.g) || !finite01(out.emissive_factor.b))
+      reader_.Fail(what + " has an emissive factor outside [0, 1]");
+    if (const auto strength = m.extensions.find("KHR_materials_emissive_strength"); strength != m.extensions.end()) {
+      const tinygltf::Value& value = strength->second.Get("emissiveStrength");
+      if (value.IsNumber()) out.emissive_strength = float(value.GetNumberAsDouble());
+      if (!std::isfinite(out.emissive_strength) || out.emissive_strength < 0 || out.emissive_strength > 1e6f)
+        reader_.Fail(what + " has an emissive strength outside [0, 1e6]");
+    }
     out.double_sided = m.doubleSided;
     if (m.alphaMode == "MASK") out.alpha_mode = PbrMaterial::AlphaMode::kMask;
     if (m.alphaMode == "BLEND") out.alpha_mode = PbrMaterial::AlphaMode::kBlend;

@@ -67,6 +67,9 @@ struct PbrMaterial {
   TextureRef normal_texture;
   float normal_scale = 1;
   glm::vec3 emissive_factor{0, 0, 0};
+  float emissive_strength = 1;  // KHR_materials_emissive_strength
+  // The radiance the surface emits, linear (emissive textures are not read).
+  glm::vec3 emission() const { return emissive_factor * emissive_strength; }
   bool double_sided = false;
   enum class AlphaMode { kOpaque, kMask, kBlend } alpha_mode = AlphaMode::kOpaque;
   float alpha_cutoff = 0.5f;

@@ -301,6 +301,62 @@ TEST_F(TripleProductRendererGL, MonteCarloShaderConvergesInAFurnace) {
   EXPECT_NEAR(sg_mean / mean, 1.0, 0.025);
 }
 
+TEST_F(TripleProductRendererGL, EmissiveMaterialAddsItsRadianceInEveryShader) {
+  // A glTF emissive material (the demo car's lamps) adds its radiance to what the surface
+  // reflects, unshadowed: in the dark a lamp reads its emission exactly (the SG shader, its CPU
+  // reference and the Monte-Carlo shader), under light the difference an emissive sphere makes is
+  // its emission; the box, not emissive, does not change. An override naming another material
+  // leaves the lamp on; one naming the lamp replaces the whole material, emission included.
+  scene::GltfScene lit = SphereAndBox();
+  lit.materials[0].emissive_factor = glm::vec3(0.8f, 0.4f, 0.1f);
+  lit.materials[0].emissive_strength = 2.5f;
+  const glm::vec3 emission(2.0f, 1.0f, 0.25f);
+  RenderOptions o;
+  o.voxel_resolution = 64;
+  o.ground = false;
+  const auto expect_emission = [&](const RenderResult& r, const char* what, const RenderResult* base) {
+    int sphere_px = 0, box_px = 0;
+    double worst = 0;
+    for (std::size_t i = 0; i < r.car_alpha.size(); ++i) {
+      if (r.car_alpha[i] <= 0.5f) continue;
+      const float* c = &r.car.rgb[3 * i];
+      const float* b = base ? &base->car.rgb[3 * i] : nullptr;
+      // The sphere is the material whose pixels moved by the emission (or, in the dark, lit at all).
+      const bool on_sphere = base ? std::abs(c[0] - b[0] - emission.x) < 1e-3 : c[0] > 0.5f;
+      for (int k = 0; k < 3; ++k)
+        worst = std::max(worst, std::abs(double(c[k]) - (b ? b[k] : 0.0) - (on_sphere ? emission[k] : 0.0)));
+      ++(on_sphere ? sphere_px : box_px);
+    }
+    std::printf("%s: %d sphere px, %d box px, worst |difference - emission| %.2e\n", what, sphere_px, box_px, worst);
+    EXPECT_GT(sphere_px, 300) << what;
+    EXPECT_GT(box_px, 300) << what;
+    EXPECT_LT(worst, 1e-4) << what;
+  };
+  TripleProductRenderer dark(lit, glm::dmat4(1.0), o);
+  dark.SetLighting(lighting::SgLighting{});
+  expect_emission(dark.Render(View(), ShadeDevice::kGpu), "dark, SG shader", nullptr);
+  expect_emission(dark.Render(View(), ShadeDevice::kCpu), "dark, CPU reference", nullptr);
+  dark.SetMaterials({ParseMaterialOverride("plastic=lambert:0.5,0.5,0.5")});
+  expect_emission(dark.Render(View(), ShadeDevice::kGpu), "dark, the box's BRDF overridden", nullptr);
+  dark.SetMaterials({ParseMaterialOverride("paint=lambert:0.5,0.5,0.5")});
+  const RenderResult off = dark.Render(View(), ShadeDevice::kGpu);
+  EXPECT_TRUE(std::all_of(off.car.rgb.begin(), off.car.rgb.end(), [](float v) { return v == 0.f; }));
+  RenderOptions mc_options = o;
+  mc_options.monte_carlo_samples = 4;
+  TripleProductRenderer mc(lit, glm::dmat4(1.0), mc_options);
+  mc.SetLighting(lighting::SgLighting{});
+  mc.SetEnvironment(sphere::EquirectImage(64, 32, 0.f));
+  expect_emission(mc.Render(View()), "dark, Monte-Carlo shader", nullptr);
+
+  TripleProductRenderer sunny(lit, glm::dmat4(1.0), o), plain(SphereAndBox(), glm::dmat4(1.0), o);
+  sunny.SetLighting(SunnySky());
+  plain.SetLighting(SunnySky());
+  const RenderResult base_gpu = plain.Render(View(), ShadeDevice::kGpu);
+  expect_emission(sunny.Render(View(), ShadeDevice::kGpu), "sunny, SG shader", &base_gpu);
+  const RenderResult base_cpu = plain.Render(View(), ShadeDevice::kCpu);
+  expect_emission(sunny.Render(View(), ShadeDevice::kCpu), "sunny, CPU reference", &base_cpu);
+}
+
 // RenderOptions::monte_carlo_exact_visibility: the Monte-Carlo shader's shadow rays against the
 // triangles. Under a box floating 0.3 m up in a constant sky, the ground's shadow ratio is one
 // minus the box's bottom face's form factor (a point below a parallel rectangle, in closed form);

@@ -368,6 +368,31 @@ TEST(GltfScene, BadJsonIsAnError) {
   ExpectLoadError(dir / "empty.gltf", "empty");
 }
 
+TEST(GltfScene, EmissionIsTheFactorTimesItsStrengthAndOutOfRangeIsAnError) {
+  // The demo car's lamps: emissiveFactor, and KHR_materials_emissive_strength for brighter ones.
+  const fs::path dir = TempDir("emissive");
+  json j = QuadGltf();
+  j["materials"] = json::array({{{"name", "lamp"}, {"emissiveFactor", {1.0, 0.5, 0.25}}},
+                                {{"name", "bright"},
+                                 {"emissiveFactor", {0.5, 0.5, 0.5}},
+                                 {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 8.0}}}}}},
+                                {{"name", "plain"}}});
+  j["extensionsUsed"] = {"KHR_materials_emissive_strength"};
+  WriteText(dir / "lamps.gltf", j.dump());
+  const GltfScene s = LoadGltfScene(dir / "lamps.gltf");
+  ASSERT_GE(s.materials.size(), 3u);
+  EXPECT_EQ(s.materials[0].emission(), glm::vec3(1.0f, 0.5f, 0.25f));
+  EXPECT_EQ(s.materials[1].emission(), glm::vec3(4.0f));
+  EXPECT_EQ(s.materials[2].emission(), glm::vec3(0.0f));
+  j["materials"][0]["emissiveFactor"] = {1.5, 0.0, 0.0};
+  WriteText(dir / "factor.gltf", j.dump());
+  ExpectLoadError(dir / "factor.gltf", "material 'lamp' has an emissive factor outside [0, 1]");
+  j["materials"][0]["emissiveFactor"] = {1.0, 0.0, 0.0};
+  j["materials"][1]["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = -2.0;
+  WriteText(dir / "strength.gltf", j.dump());
+  ExpectLoadError(dir / "strength.gltf", "material 'bright' has an emissive strength outside [0, 1e6]");
+}
+
 TEST(GltfScene, MissingExternalTextureNamesTheTexture) {
   const fs::path src = kData / "gltf/kenney/police/police.glb";
   SKIP_IF_ABSENT(src);
