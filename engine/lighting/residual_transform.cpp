@@ -43,7 +43,7 @@ bool HasBadPixels(const float* v, std::size_t n) {
 
 // `image` as a width × height image whose pixels the caller writes every one of: storage kept
 // across frames is reused as it is, neither given back nor zeroed (a fresh 512×256 image per pass
-// cost its zeroing, and often its page faults, on the calling thread while the pool waited).
+// was zeroed on the calling thread while the pool waited).
 void Reshape(sphere::EquirectImage* image, int width, int height) {
   image->width = width;
   image->height = height;
