@@ -232,12 +232,7 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
                sphere::EquirectImage* coarse = nullptr, const sphere::EquirectImage* source = nullptr,
                int source_factor = 1, ThreadPool* pool = nullptr) {
   FrameScan s;
-  if (coarse) {
-    // Every cell is written by the pass: storage the caller keeps across frames is not zeroed.
-    coarse->width = frame.width / coarse_factor;
-    coarse->height = frame.height / coarse_factor;
-    coarse->rgb.resize(3 * coarse->pixel_count());
-  }
+  if (coarse) coarse->Reshape(frame.width / coarse_factor, frame.height / coarse_factor);  // every cell written
   const int w = frame.width, h = frame.height;
   s.block = block;
   s.blocks_wide = (w + block - 1) / block;

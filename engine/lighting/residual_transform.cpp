@@ -41,22 +41,13 @@ bool HasBadPixels(const float* v, std::size_t n) {
   return bad;
 }
 
-// `image` as a width × height image whose pixels the caller writes every one of: storage kept
-// across frames is reused as it is, neither given back nor zeroed (a fresh 512×256 image per pass
-// was zeroed on the calling thread while the pool waited).
-void Reshape(sphere::EquirectImage* image, int width, int height) {
-  image->width = width;
-  image->height = height;
-  image->rgb.resize(3 * image->pixel_count());
-}
-
 // The finest working grid as `factor`×`factor` box means of a clean input (DownsampleBox bit
 // for bit), in row bands on the pool, each input row checked for bad pixels while it is in
 // cache: at 2048 wide the frame is 25 MB, and the check and the box each read all of it on
 // one thread. False when a pixel is bad (`out` is then not the grid).
 bool DownsampleBoxIfClean(const sphere::EquirectImage& input, int factor, sphere::EquirectImage* out,
                           ThreadPool* pool) {
-  Reshape(out, input.width / factor, input.height / factor);
+  out->Reshape(input.width / factor, input.height / factor);
   const std::vector<float>& weights = sphere::BoxRowWeights(input.height, factor);
   std::atomic<bool> bad{false};
   pool->ParallelFor(
@@ -305,7 +296,7 @@ void ResidueOfCoarserLevels(const std::vector<const LevelTables*>& tables,
                             const sphere::EquirectImage& target, sphere::EquirectImage* residue, ThreadPool* pool) {
   const int width = target.width, stride = (width + 3) / 4 * 4;
   const bool avx2 = use_avx2;
-  Reshape(residue, width, target.height);
+  residue->Reshape(width, target.height);
   long entries = 0;
   for (const LevelTables* t : tables) entries += t->srbf_begin.back();
   pool->ParallelFor(
@@ -346,7 +337,7 @@ glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
 // out = a − b (`out` neither of them).
 void Subtract(const sphere::EquirectImage& a, const sphere::EquirectImage& b, sphere::EquirectImage* out,
               ThreadPool* pool) {
-  Reshape(out, a.width, a.height);
+  out->Reshape(a.width, a.height);
   const std::size_t row = 3 * static_cast<std::size_t>(a.width);
   pool->ParallelFor(
       a.height,
@@ -700,12 +691,8 @@ void ResidualTransform::CorrectCoarserLevels(const sphere::EquirectImage& leftov
   // Kept across frames: a fresh image each frame costs its page faults and zeroing, which on
   // this machine took longer than the restriction itself.
   sphere::EquirectImage& residue = correction_residue_;
-  residue.width = w;
-  residue.height = h;
-  if (leftover.width == w && leftover.height == h)
-    residue.rgb = leftover.rgb;
-  else
-    sphere::ResampleArea(leftover, &residue, pool_.get());
+  residue.Reshape(w, h);
+  sphere::ResampleArea(leftover, &residue, pool_.get());  // a copy when the grids agree
   std::vector<glm::vec3> delta;
   for (int l = upper; l >= lower; --l) {
     const LevelTables& t = Tables(l, w, h);
@@ -744,8 +731,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
   CheckTransformInput(input.width, input.height);
   TransformReport report;
   SgLighting model;
-  // One run at a time: the images below are kept across frames (Reshape), and the pool takes
-  // one caller at a time anyway.
+  // One run at a time: the images below are kept across frames (a fresh 512×256 image per pass
+  // was zeroed on the calling thread while the pool waited), and the pool takes one caller anyway.
   std::lock_guard run_lock(run_mutex_);
   Scratch& scratch = scratch_;
 
@@ -774,11 +761,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     if (!dirty && owned && input.width == finest_w && input.height == finest_h) {
       std::swap(grids.back(), *owned);
     } else {
-      Reshape(&grids.back(), finest_w, finest_h);
-      if (finest_w == source->width && finest_h == source->height)
-        grids.back().rgb = source->rgb;
-      else
-        sphere::ResampleArea(*source, &grids.back(), pool_.get());
+      grids.back().Reshape(finest_w, finest_h);
+      sphere::ResampleArea(*source, &grids.back(), pool_.get());
     }
   }
   for (int s = levels - 2; s >= 0; --s) {
@@ -789,11 +773,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     const int factor = finer.width / w;
     if (!(factor > 1 && finer.width == factor * w && finer.height == factor * h &&
           DownsampleBoxIfClean(finer, factor, &grid, pool_.get()))) {
-      Reshape(&grid, w, h);
-      if (w == finer.width && h == finer.height)
-        grid.rgb = finer.rgb;
-      else
-        sphere::ResampleArea(finer, &grid, pool_.get());
+      grid.Reshape(w, h);
+      sphere::ResampleArea(finer, &grid, pool_.get());
     }
   }
   report.prepare_ms = MsSince(start);
@@ -813,7 +794,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
   // R: reconstruction of everything fitted so far, on the current level's grid.
   const auto [w0, h0] = GridOf(0, input_w, input_h);
   sphere::EquirectImage& recon = scratch.recon;
-  Reshape(&recon, w0, h0);
+  recon.Reshape(w0, h0);
   for (std::size_t i = 0; i < recon.rgb.size(); i += 3) {
     recon.rgb[i] = model.constant.x;
     recon.rgb[i + 1] = model.constant.y;
@@ -871,7 +852,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     const LevelTables& t = Tables(s, w, h);
     std::vector<glm::vec3> mu, delta;
     Project(t, residue, options_.normalization, &mu, pool_.get());
-    Reshape(&remaining, w, h);
+    remaining.Reshape(w, h);
     Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
       Project(t, remaining, options_.normalization, &delta, pool_.get());

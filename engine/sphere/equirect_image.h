@@ -18,6 +18,13 @@ struct EquirectImage {
   float* at(int col, int row) { return &rgb[3 * (static_cast<std::size_t>(row) * width + col)]; }
   const float* at(int col, int row) const { return &rgb[3 * (static_cast<std::size_t>(row) * width + col)]; }
   bool empty() const { return width == 0 || height == 0; }
+  // Makes this a w × h image whose every pixel the caller writes next: the storage is reused as
+  // it is, neither given back nor zeroed (images kept across frames by the lighting passes).
+  void Reshape(int w, int h) {
+    width = w;
+    height = h;
+    rgb.resize(pixel_count() * 3);
+  }
 };
 
 // The mean of each f×f block over the sphere (f must divide both sides): each row weighted by its

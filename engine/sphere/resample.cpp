@@ -79,7 +79,11 @@ void ResampleArea(const EquirectImage& image, EquirectImage* target, ThreadPool*
   if (width <= 0 || height <= 0) throw Error("resample", "target size must be positive");
   if (width > image.width || height > image.height) throw Error("resample", "area resampling only shrinks");
   EquirectImage& out = *target;
-  out.rgb.resize(3 * out.pixel_count());
+  if (width == image.width && height == image.height) {  // nothing to average: a copy
+    out.rgb = image.rgb;
+    return;
+  }
+  out.Reshape(width, height);
   const int n = 3 * image.width;
   const int factor = image.width / width;
   const bool whole_columns = image.width == factor * width;
@@ -279,9 +283,7 @@ void MagnifyLagrange(const EquirectImage& image, int width, int height, Equirect
   }
   // Every pixel is written below: the storage is reused as it is, not zeroed.
   EquirectImage& out = *target;
-  out.width = width;
-  out.height = height;
-  out.rgb.resize(3 * out.pixel_count());
+  out.Reshape(width, height);
   static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
   const auto rows = [&](long begin, long end) {
     (avx2 ? MagnifyRowsAvx2 : MagnifyRowsPlain)(image, plan, begin, end, &out);

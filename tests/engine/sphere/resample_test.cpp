@@ -80,6 +80,14 @@ TEST(Resample, IntegerRatioIsTheBoxAverage) {
   const EquirectImage out = ResampleArea(in, 64, 32);
   ExpectClose(out, DownsampleBox(in, 4), 0);
   ExpectClose(out, BruteForceArea(in, 64, 32), 2e-5);
+  // Into kept storage (other size, NaNs): the same; at the input's own size, the input.
+  EquirectImage kept(7, 300, std::nanf(""));
+  kept.Reshape(64, 32);
+  ResampleArea(in, &kept);
+  ExpectClose(kept, out, 0);
+  kept.Reshape(256, 128);
+  ResampleArea(in, &kept);
+  EXPECT_EQ(kept.rgb, in.rgb);
 }
 
 double SphereIntegral(const EquirectImage& image, int channel) {
