@@ -43,7 +43,10 @@ struct BenchRenderOptions {
   std::vector<int> mc_samples = {4, 16, 64, 256};
   std::vector<int> mc_voxels = {128};  // the Monte-Carlo rows' voxel resolutions
   unsigned mc_seed = 1;
-  bool mc_exact = false;      // also Monte-Carlo rows with ray-traced visibility ("mc-exact")
+  bool mc_exact = false;  // also Monte-Carlo rows with ray-traced visibility ("mc-exact")
+  // Each k > 1: the default configuration's SG row and the Monte-Carlo rows again with k×k shaded
+  // samples per pixel (RenderOptions::supersample), MC at samples/k² each (the same rays per pixel).
+  std::vector<int> supersample = {1, 2};
   std::string images_dir;     // non-empty: each scored row's car layer and shadow ratio as EXR there
   bool lobe_modes = true;     // also the four warp × cosine modes at the default configuration
   bool hd_row = true;         // a 1280×720 row (shade ms)
@@ -58,7 +61,8 @@ constexpr int kDefaultLevels = 5, kDefaultCones = 7, kDefaultVoxels = 128;
 struct Row {
   std::string reference, method, lobes;  // method: "sg", "mc" or "mc-exact"; lobes: "iso-axis", ...
   int width = 0, height = 0;
-  int levels = 0, cones = 0, voxels = 0, samples = 0;
+  int levels = 0, cones = 0, voxels = 0, samples = 0;  // samples: MC rays per pixel
+  int supersample = 1;
   double mean_rel = 0, rel_l1 = 0, bias = 0, ssim = 0, shadow_mae = -1;  // shadow_mae < 0: no shadow reference
   double shade_ms = 0, total_ms = 0;
   int car_pixels = 0, shadow_pixels = 0;
@@ -277,14 +281,15 @@ std::string LobeName(const material::LobeOptions& l) {
 
 Row RenderRow(const Reference& ref, const std::string& method, int levels, int cones, int voxels, int samples,
               const material::LobeOptions& lobes, int width = 0, int height = 0, unsigned seed = 1,
-              const std::string& images_dir = "") {
+              const std::string& images_dir = "", int supersample = 1) {
   render::RenderOptions o;
+  o.supersample = supersample;
   o.lighting_levels = levels;
   o.cone_rings = ConeRingsForCount(cones);
   o.voxel_resolution = voxels;
   o.materials = ref.materials;
   o.lobes = lobes;
-  o.monte_carlo_samples = samples;
+  o.monte_carlo_samples = samples / (supersample * supersample);
   o.monte_carlo_seed = seed;
   o.monte_carlo_exact_visibility = method == "mc-exact";
   lighting::LightingOptions lo;
@@ -311,6 +316,7 @@ Row RenderRow(const Reference& ref, const std::string& method, int levels, int c
   row.cones = method != "sg" ? 0 : cones;
   row.voxels = voxels;
   row.samples = samples;
+  row.supersample = supersample;
   row.shade_ms = r.ms.shade;
   row.total_ms = r.ms.total;
   if (scored) Score(ref, r, &row);
@@ -321,7 +327,7 @@ Row RenderRow(const Reference& ref, const std::string& method, int levels, int c
         ref.name + "_" + method +
         (method == "sg" ? "_l" + std::to_string(levels) + "_c" + std::to_string(cones) + "_" + row.lobes
                         : "_s" + std::to_string(samples)) +
-        "_v" + std::to_string(voxels) + ".exr";
+        "_v" + std::to_string(voxels) + (supersample > 1 ? "_ss" + std::to_string(supersample) : "") + ".exr";
     image::SaveImage(fs::path(images_dir) / name, r.car);
     image::SaveImage(fs::path(images_dir) / (name.substr(0, name.size() - 4) + "_shadow.exr"), r.shadow);
   }
@@ -330,7 +336,7 @@ Row RenderRow(const Reference& ref, const std::string& method, int levels, int c
 
 const char* kHeader =
     "reference\tmethod\tlobes\twidth\theight\tlevels\tcones\tvoxels\tsamples\tmean_rel\trel_l1\tbias\tssim\t"
-    "shadow_mae\tshadow_px\tcar_px\tshade_ms\ttotal_ms";
+    "shadow_mae\tshadow_px\tcar_px\tshade_ms\ttotal_ms\tsupersample";
 
 std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
   std::ifstream in(tsv);
@@ -348,7 +354,8 @@ std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
     std::istringstream f(line);
     std::string field;
     while (std::getline(f, field, '\t')) v.push_back(field);
-    if (v.size() != 18) throw Error(tsv.string(), "a row without 18 columns: " + line);
+    // 18 columns: written before supersampling (every row k = 1).
+    if (v.size() != 18 && v.size() != 19) throw Error(tsv.string(), "a row without 19 columns: " + line);
     try {
       Row r;
       r.reference = v[0];
@@ -369,6 +376,7 @@ std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
       r.car_pixels = std::stoi(v[15]);
       r.shade_ms = std::stod(v[16]);
       r.total_ms = std::stod(v[17]);
+      r.supersample = v.size() > 18 ? std::stoi(v[18]) : 1;
       rows.push_back(r);
     } catch (const std::exception&) {
       throw Error(tsv.string(), "a malformed number in: " + line);
@@ -379,9 +387,9 @@ std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
 
 std::string F(double v, int digits = 3) { return fmt::format("{:.{}f}", v, digits); }
 
-bool IsDefault(const Row& r, const std::string& lobes) {
+bool IsDefault(const Row& r, const std::string& lobes, int supersample = 1) {
   return r.method == "sg" && r.lobes == lobes && r.levels == kDefaultLevels && r.cones == kDefaultCones &&
-         r.voxels == kDefaultVoxels && r.car_pixels > 0;
+         r.voxels == kDefaultVoxels && r.car_pixels > 0 && r.supersample == supersample;
 }
 
 // The lobe mode the defaults use (RenderOptions{}.lobes), as the rows name it.
@@ -446,15 +454,39 @@ std::string Targets(const std::vector<Row>& rows) {
      << "| reference | mean rel. error | ≤ 10 % | SSIM | shadow MAE | shade ms | MC ms at that error | speed-up "
         "| MC's best: error, ms | cheapest SG row as accurate | speed-up there |\n"
      << "|---|---|---|---|---|---|---|---|---|---|---|\n";
-  int met = 0, total = 0, fast = 0, fast_total = 0, fast_at_mc = 0;
+  int supersample = 1;  // the largest k > 1 with rows: its own table below
+  for (const auto& r : rows)
+    if (r.car_pixels > 0) supersample = std::max(supersample, r.supersample);
+  std::ostringstream ss_md;
+  int met = 0, total = 0, fast = 0, fast_total = 0, fast_at_mc = 0, ss_met = 0, ss_total = 0, ss_fast = 0,
+      ss_fast_total = 0;
   for (const auto& name : refs) {
-    const Row* sg = nullptr;
-    std::vector<const Row*> mc, sg_rows;
+    const Row *sg = nullptr, *sg_ss = nullptr;
+    std::vector<const Row*> mc, mc_ss, sg_rows;
     for (const auto& r : rows) {
       if (r.reference != name || r.car_pixels == 0) continue;
       if (IsDefault(r, lobes)) sg = &r;
+      if (supersample > 1 && IsDefault(r, lobes, supersample)) sg_ss = &r;
       if (r.method == "sg") sg_rows.push_back(&r);
-      if (r.method == "mc" && r.voxels == kDefaultVoxels) mc.push_back(&r);
+      if (r.method == "mc" && r.voxels == kDefaultVoxels && r.supersample == 1) mc.push_back(&r);
+      if (r.method == "mc" && r.voxels == kDefaultVoxels && r.supersample == supersample) mc_ss.push_back(&r);
+    }
+    if (sg_ss) {
+      ++ss_total;
+      ss_met += sg_ss->mean_rel <= 0.10;
+      std::string bound;
+      const double mc_ms = McMsAtError(mc_ss, sg_ss->mean_rel, &bound);
+      std::string speed = "–";
+      if (mc_ms > 0) {
+        ++ss_fast_total;
+        ss_fast += mc_ms / sg_ss->shade_ms >= 20 && bound != "<";
+        speed = bound + F(mc_ms / sg_ss->shade_ms, 1) + "×";
+      }
+      const Row* best = MostSamples(mc_ss);
+      ss_md << "| " << name << " | " << (sg ? F(sg->mean_rel) : "–") << " | " << F(sg_ss->mean_rel) << " | "
+            << (sg_ss->mean_rel <= 0.10 ? "yes" : "no") << " | " << F(sg_ss->ssim) << " | " << F(sg_ss->shade_ms, 1)
+            << " | " << (mc_ms > 0 ? bound + F(mc_ms, 0) : "–") << " | " << speed << " | "
+            << (best ? F(best->mean_rel) + ", " + F(best->shade_ms, 0) : "–") << " |\n";
     }
     if (!sg) continue;
     ++total;
@@ -486,6 +518,15 @@ std::string Targets(const std::vector<Row>& rows) {
      << " references. **≥ 20× faster than MC at equal error:** " << fast << " of " << fast_total
      << " at the default configuration's error; " << fast_at_mc << " of " << fast_total
      << " at MC's best error (the cheapest SG row as accurate).\n";
+  if (ss_total > 0)
+    md << "\n**Supersampled, " << supersample << "×" << supersample << " shaded samples per pixel** (the default "
+       << "configuration otherwise; the Monte-Carlo rows likewise, at samples/" << supersample * supersample
+       << " each, the same rays per pixel):\n\n| reference | error at 1×1 | error | ≤ 10 % | SSIM | shade ms | MC ms "
+          "at "
+          "that error | speed-up | MC's best: error, ms |\n|---|---|---|---|---|---|---|---|---|\n"
+       << ss_md.str() << "\n**Mean relative error ≤ 10 % on car pixels, supersampled:** " << ss_met << " of "
+       << ss_total << " references. **≥ 20× faster than MC at equal error** (MC supersampled alike): " << ss_fast
+       << " of " << ss_fast_total << ".\n";
   for (const auto& r : rows)
     if (r.car_pixels == 0 && r.method == "sg")
       md << "\n**" << r.width << "×" << r.height << "** (" << r.reference << ", default configuration): shade "
@@ -503,7 +544,7 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
     t << r.reference << "\t" << r.method << "\t" << r.lobes << "\t" << r.width << "\t" << r.height << "\t" << r.levels
       << "\t" << r.cones << "\t" << r.voxels << "\t" << r.samples << "\t" << r.mean_rel << "\t" << r.rel_l1 << "\t"
       << r.bias << "\t" << r.ssim << "\t" << r.shadow_mae << "\t" << r.shadow_pixels << "\t" << r.car_pixels << "\t"
-      << r.shade_ms << "\t" << r.total_ms << "\n";
+      << r.shade_ms << "\t" << r.total_ms << "\t" << r.supersample << "\n";
   WriteTextAtomically(tsv, t.str());
 
   std::ostringstream md;
@@ -517,17 +558,18 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
      << "|ratio − ratio_ref| where Cycles' ratio < 0.95 off the car. `sg` rows: the triple-product renderer, "
      << "lobes `iso`/`split` (eq. 4.10's warp / the anisotropic split) × `axis`/`sg` (the cosine at the lobe "
      << "axis / as an SG); `mc` rows: the Monte-Carlo shader on the same G-buffer and voxels; `mc-exact` rows: "
-     << "the same with shadow rays against the triangles (the ground's lit fraction still from the voxels). Times are "
-        "one "
+     << "the same with shadow rays against the triangles (the ground's lit fraction still from the voxels). `k`: "
+        "shaded samples per pixel along each axis (`RenderOptions::supersample`), resolved with Cycles' pixel "
+        "filter (Blackman-Harris, 1.5 px); MC `samples` are rays per pixel. Times are one "
      << "render each, on the device named above.\n\n"
-     << "| reference | method | lobes | levels | cones | voxels | samples | mean_rel | rel_l1 | bias | ssim | shadow | "
-        "shade ms | total ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+     << "| reference | method | lobes | levels | cones | voxels | samples | k | mean_rel | rel_l1 | bias | ssim | "
+        "shadow | shade ms | total ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows) {
     if (r.car_pixels == 0) continue;
     md << "| " << r.reference << " | " << r.method << " | " << r.lobes << " | "
        << (r.levels ? std::to_string(r.levels) : "–") << " | " << (r.cones ? std::to_string(r.cones) : "–") << " | "
-       << r.voxels << " | " << (r.samples ? std::to_string(r.samples) : "–") << " | " << F(r.mean_rel) << " | "
-       << F(r.rel_l1) << " | " << F(r.bias) << " | " << F(r.ssim) << " | "
+       << r.voxels << " | " << (r.samples ? std::to_string(r.samples) : "–") << " | " << r.supersample << " | "
+       << F(r.mean_rel) << " | " << F(r.rel_l1) << " | " << F(r.bias) << " | " << F(r.ssim) << " | "
        << (r.shadow_mae >= 0 ? F(r.shadow_mae) : "–") << " | " << F(r.shade_ms, 1) << " | " << F(r.total_ms, 1)
        << " |\n";
   }
@@ -596,6 +638,15 @@ int RunBenchRender(BenchRenderOptions o) {
         for (int n : o.mc_samples)
           rows.push_back(RenderRow(ref, method, kDefaultLevels, 1, v, n, modes[0], 0, 0, o.mc_seed, o.images_dir));
     }
+    for (int k : o.supersample) {
+      if (k == 1) continue;
+      rows.push_back(
+          RenderRow(ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 0, 0, 1, o.images_dir, k));
+      for (int n : o.mc_samples)
+        if (n >= k * k)
+          rows.push_back(
+              RenderRow(ref, "mc", kDefaultLevels, 1, kDefaultVoxels, n, modes[0], 0, 0, o.mc_seed, o.images_dir, k));
+    }
     progress.Step(ref.name);
   }
   if (o.hd_row) {
@@ -625,6 +676,10 @@ CommandFn AddBenchRender(CLI::App* sub) {
   sub->add_option("--mc-seed", o->mc_seed, "Seed of the Monte-Carlo rows");
   sub->add_flag("--mc-exact", o->mc_exact,
                 "Also Monte-Carlo rows with shadow rays against the triangles (method mc-exact): what the voxels cost");
+  sub->add_option("--supersample", o->supersample,
+                  "Shaded samples per pixel along each axis: 1 and, per k > 1, the default SG row and MC rows again")
+      ->delimiter(',')
+      ->check(CLI::Range(1, render::kMaxSupersample));
   sub->add_option("--images", o->images_dir,
                   "Also write each scored row's car layer and shadow ratio (linear EXR) here");
   sub->add_flag("!--no-lobe-modes", o->lobe_modes, "Skip the warp × cosine rows");

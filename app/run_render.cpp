@@ -27,6 +27,7 @@ struct RenderCliOptions {
   int levels = 5;
   int cones = 7;
   int voxels = 128;
+  int supersample = 1;
   std::string size = "640x360";
   std::string camera;
   std::string model_matrix, env_rotation;
@@ -72,6 +73,7 @@ int RunRender(const RenderCliOptions& o) {
   options.lighting_levels = o.levels;
   options.cone_rings = ConeRingsForCount(o.cones);
   options.voxel_resolution = o.voxels;
+  options.supersample = o.supersample;
   options.peak_cones = !o.no_peaks;
   for (const auto& m : o.materials) options.materials.push_back(render::ParseMaterialOverride(m));
   options.Check();
@@ -184,6 +186,7 @@ int RunRender(const RenderCliOptions& o) {
           {"levels", o.levels},
           {"cones_per_broad_lobe", o.cones},
           {"voxels", o.voxels},
+          {"supersample", o.supersample},
           {"car_pixels", c.car_pixels},
           {"ground_pixels_occluded", c.ground_pixels},
           {"lobes_per_car_pixel", c.lobes_per_car_pixel},
@@ -194,8 +197,9 @@ int RunRender(const RenderCliOptions& o) {
           {"triples_total", c.triples_total}}}};
     std::cout << j.dump(2) << "\n";
   } else {
-    std::cout << o.out << ": " << width << "x" << height << ", " << c.car_pixels << " car pixels, " << c.lighting_sgs
-              << " SGs (" << c.peaks << " peaks), " << fmt::format("{:.1f}", c.lobes_per_car_pixel) << " lobes and "
+    std::cout << o.out << ": " << width << "x" << height << ", " << c.car_pixels
+              << (o.supersample > 1 ? " shaded car samples, " : " car pixels, ") << c.lighting_sgs << " SGs ("
+              << c.peaks << " peaks), " << fmt::format("{:.1f}", c.lobes_per_car_pixel) << " lobes and "
               << fmt::format("{:.1f}", c.cones_per_car_pixel) << " cones per car pixel\n"
               << fmt::format(
                      "ms: lighting {:.1f}, voxelize {:.1f}, G-buffer {:.1f}, shade {:.1f} ({}), composite {:.1f}\n",
@@ -232,6 +236,9 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_option("--voxels", o->voxels, "Voxel resolution per side: 64, 128, 256 or 512")
       ->check(CLI::IsMember({64, 128, 256, 512}));
   sub->add_option("--size", o->size, "Output WIDTHxHEIGHT");
+  sub->add_option("--supersample", o->supersample,
+                  "Shade KxK samples per pixel, resolved with Cycles' pixel filter (K² the shading time)")
+      ->check(CLI::Range(1, render::kMaxSupersample));
   sub->add_option("--camera", o->camera, "px,py,pz,tx,ty,tz,vfov_deg: position, target (world, +Y up, metres)");
   sub->add_option("--material", o->materials,
                   "Override materials: [NAME=]KD,KS,N or [NAME=]MODEL:PARAMS[+MODEL:PARAMS] with MODEL lambert, phong, "

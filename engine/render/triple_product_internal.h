@@ -86,4 +86,16 @@ struct ReferenceInputs {
 // ground_mask and `counts` (one per pixel).
 void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector<PixelCounts>* counts);
 
+// RenderOptions::supersample: output pixel X gathers the shaded samples x = kX + j,
+// j ∈ [−k, 2k), with weight W[j + k]·W[i + k] (rows alike); W is the Blackman-Harris window
+// 1.5 output pixels wide at the sample's offset (x + ½)/k − (X + ½), 0 outside it — Cycles'
+// default pixel filter. render_resolve.comp reads the same table.
+std::vector<float> SupersampleWeights(int k);
+
+// The resolve on the CPU, as render_resolve.comp does it: `shaded` holds car, car_alpha, shadow
+// and ground_mask at k× `width` × `height`; `out` gets them at the output size. The car's
+// radiance is averaged over its coverage (alpha-weighted), the shadow ratio over the samples the
+// car leaves uncovered, so the composite blends at the car's edge as at k× and resolved.
+void ResolveSupersampled(const RenderResult& shaded, int k, int width, int height, RenderResult* out);
+
 }  // namespace odvr::render::detail

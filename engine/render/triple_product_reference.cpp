@@ -316,4 +316,63 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
       16);
 }
 
+std::vector<float> SupersampleWeights(int k) {
+  constexpr double kHalfWidth = 0.75, kTwoPi = 6.283185307179586;
+  std::vector<float> weights(static_cast<std::size_t>(3 * k), 0.f);
+  for (int j = -k; j < 2 * k; ++j) {
+    const double t = (((j + 0.5) / k - 0.5) / kHalfWidth + 1) / 2;  // 0..1 across the window
+    if (t <= 0 || t >= 1) continue;
+    const double a = kTwoPi * t;
+    weights[static_cast<std::size_t>(j + k)] =
+        static_cast<float>(0.35875 - 0.48829 * std::cos(a) + 0.14128 * std::cos(2 * a) - 0.01168 * std::cos(3 * a));
+  }
+  return weights;
+}
+
+void ResolveSupersampled(const RenderResult& shaded, int k, int width, int height, RenderResult* out) {
+  const int sw = shaded.car.width, sh = shaded.car.height;
+  const std::vector<float> weight = SupersampleWeights(k);
+  out->car = sphere::EquirectImage(width, height, 0.f);
+  out->shadow = sphere::EquirectImage(width, height, 1.f);
+  out->car_alpha.assign(static_cast<std::size_t>(width) * height, 0.f);
+  out->ground_mask.assign(static_cast<std::size_t>(width) * height, 0.f);
+  for (int y_out = 0; y_out < height; ++y_out)
+    for (int x_out = 0; x_out < width; ++x_out) {
+      // float sums in the shader's order (rows outer, columns inner), so both paths round alike.
+      float w_sum = 0, alpha = 0, ground = 0, uncovered = 0;
+      glm::vec3 car(0), shadow(0);
+      for (int j = 0; j < 3 * k; ++j) {
+        const int y = k * y_out - k + j;
+        if (y < 0 || y >= sh || weight[static_cast<std::size_t>(j)] == 0.f) continue;
+        for (int i = 0; i < 3 * k; ++i) {
+          const int x = k * x_out - k + i;
+          if (x < 0 || x >= sw || weight[static_cast<std::size_t>(i)] == 0.f) continue;
+          const float w = weight[static_cast<std::size_t>(j)] * weight[static_cast<std::size_t>(i)];
+          const std::size_t s = static_cast<std::size_t>(y) * sw + x;
+          const float a = shaded.car_alpha[s];
+          w_sum += w;
+          alpha += w * a;
+          ground += w * shaded.ground_mask[s];
+          uncovered += w * (1 - a);
+          const float* c = &shaded.car.rgb[3 * s];
+          const float* r = &shaded.shadow.rgb[3 * s];
+          car += w * a * glm::vec3(c[0], c[1], c[2]);
+          shadow += w * (1 - a) * glm::vec3(r[0], r[1], r[2]);
+        }
+      }
+      const std::size_t o = static_cast<std::size_t>(y_out) * width + x_out;
+      out->car_alpha[o] = alpha / w_sum;
+      out->ground_mask[o] = ground / w_sum;
+      if (alpha > 0) car /= alpha;
+      if (uncovered > 0)
+        shadow /= uncovered;
+      else
+        shadow = glm::vec3(1);
+      for (int c = 0; c < 3; ++c) {
+        out->car.rgb[3 * o + c] = car[c];
+        out->shadow.rgb[3 * o + c] = shadow[c];
+      }
+    }
+}
+
 }  // namespace odvr::render::detail

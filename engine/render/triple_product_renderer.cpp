@@ -359,6 +359,9 @@ void RenderOptions::Check() const {
       throw Error("render material override", "needs one or two BRDF terms");
   if (monte_carlo_samples < 0 || monte_carlo_samples > 1 << 20)
     throw Error("render monte_carlo_samples", "must be in 0..2^20");
+  if (supersample < 1 || supersample > kMaxSupersample)
+    throw Error("render supersample",
+                "must be in 1.." + std::to_string(kMaxSupersample) + ", got " + std::to_string(supersample));
   visibility::ConeSubsampleOptions c = cones;
   c.rings = cone_rings;
   c.Check();
@@ -409,12 +412,16 @@ struct TripleProductRenderer::Impl {
   gl::Buffer bvh_nodes{gl::NoCreate}, bvh_triangles{gl::NoCreate};
   int bvh_triangle_count = 0;
 
-  gl::Program gbuffer_program{gl::NoCreate}, shade_program{gl::NoCreate}, composite_program{gl::NoCreate};
-  int fb_width = 0, fb_height = 0;
+  gl::Program gbuffer_program{gl::NoCreate}, shade_program{gl::NoCreate}, composite_program{gl::NoCreate},
+      resolve_program{gl::NoCreate};
+  int fb_width = 0, fb_height = 0, out_width = 0, out_height = 0;
   gl::Framebuffer framebuffer{gl::NoCreate};
   gl::Texture g_position{gl::NoCreate}, g_normal{gl::NoCreate}, g_base{gl::NoCreate}, g_depth{gl::NoCreate};
   gl::Texture car_layer{gl::NoCreate}, shadow_layer{gl::NoCreate}, composite_layer{gl::NoCreate},
       background_layer{gl::NoCreate};
+  // RenderOptions::supersample > 1: the shading's car and shadow layers at the G-buffer's size,
+  // resolved into car_layer and shadow_layer at the output's.
+  gl::Texture shaded_car{gl::NoCreate}, shaded_shadow{gl::NoCreate};
   gl::Buffer counts{gl::NoCreate};
 
   const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb) {
@@ -429,22 +436,28 @@ struct TripleProductRenderer::Impl {
     return textures.emplace(key, std::move(t)).first->second;
   }
 
-  void EnsureTargets(int w, int h) {
-    if (w == fb_width && h == fb_height) return;
+  // The G-buffer and the shading at w × h, the output at out_w × out_h (smaller when supersampled).
+  void EnsureTargets(int w, int h, int out_w, int out_h) {
+    if (w == fb_width && h == fb_height && out_w == out_width && out_h == out_height) return;
     fb_width = w;
     fb_height = h;
-    const auto rgba32 = [&] {
-      gl::Texture t = gl::Texture::Create2D(GL_RGBA32F, w, h);
+    out_width = out_w;
+    out_height = out_h;
+    const auto rgba32 = [&](int tw, int th) {
+      gl::Texture t = gl::Texture::Create2D(GL_RGBA32F, tw, th);
       t.SetFilter(GL_NEAREST, GL_NEAREST);
       return t;
     };
-    g_position = rgba32();
-    g_normal = rgba32();
-    g_base = rgba32();
-    car_layer = rgba32();
-    shadow_layer = rgba32();
-    composite_layer = rgba32();
-    background_layer = rgba32();
+    g_position = rgba32(w, h);
+    g_normal = rgba32(w, h);
+    g_base = rgba32(w, h);
+    car_layer = rgba32(out_w, out_h);
+    shadow_layer = rgba32(out_w, out_h);
+    composite_layer = rgba32(out_w, out_h);
+    background_layer = rgba32(out_w, out_h);
+    const bool supersampled = w != out_w || h != out_h;
+    shaded_car = supersampled ? rgba32(w, h) : gl::Texture(gl::NoCreate);
+    shaded_shadow = supersampled ? rgba32(w, h) : gl::Texture(gl::NoCreate);
     g_depth = gl::Texture::Create2D(GL_DEPTH_COMPONENT32F, w, h);
     framebuffer = gl::Framebuffer();
     framebuffer.AttachColor(g_position, 0).AttachColor(g_normal, 1).AttachColor(g_base, 2).AttachDepth(g_depth);
@@ -471,6 +484,7 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   im.shade_program = gl::ShaderLibrary::Compute("render_shade.comp",
                                                 "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n");
   im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
+  if (options_.supersample > 1) im.resolve_program = gl::ShaderLibrary::Compute("render_resolve.comp");
   if (options_.monte_carlo_samples > 0) im.mc_program = gl::ShaderLibrary::Compute("render_mc.comp");
   im.white = gl::Texture::Create2D(GL_RGBA8, 1, 1);
   const std::uint8_t white[4] = {255, 255, 255, 255};
@@ -752,11 +766,16 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   }
   out.ms.voxelize = MsSince(t0);
 
-  // G-buffer.
+  // G-buffer, at the shaded size (RenderOptions::supersample).
   t0 = Clock::now();
-  im.EnsureTargets(w, h);
+  const int k = options_.supersample;
+  PinholeCamera shaded_camera = camera;
+  shaded_camera.width = k * w;
+  shaded_camera.height = k * h;
+  const int sw = shaded_camera.width, sh = shaded_camera.height;
+  im.EnsureTargets(sw, sh, w, h);
   const glm::dmat3 camera_from_world = glm::transpose(camera.world_from_camera);
-  const double f = camera.focal_px();
+  const double f = camera.focal_px(), sf = shaded_camera.focal_px();
   double near = 0.01, far = 10;
   if (geometry) {
     double dmin = 1e300, dmax = 0;
@@ -772,8 +791,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     if (dmin <= 0) near = std::max(far * 1e-6, 1e-3);
   }
   glm::dmat4 clip(0.0);  // column-major: clip[col][row]
-  clip[0][0] = 2 * f / w;
-  clip[1][1] = 2 * f / h;
+  clip[0][0] = 2 * sf / sw;
+  clip[1][1] = 2 * sf / sh;
   clip[2][2] = (far + near) / (far - near);
   clip[3][2] = -2 * far * near / (far - near);
   clip[2][3] = 1;
@@ -782,7 +801,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   const glm::mat4 clip_from_world(clip * view);
 
   im.framebuffer.Bind();
-  glViewport(0, 0, w, h);
+  glViewport(0, 0, sw, sh);
   const float zero[4] = {0, 0, 0, 0};
   for (int i = 0; i < 3; ++i) glClearNamedFramebufferfv(im.framebuffer.id(), GL_COLOR, i, zero);
   const float one = 1.f;
@@ -835,18 +854,20 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
                                  im.bounds.empty() ? 0.0 : im.bounds.center().z);
   const glm::vec3 ground_radiance = im.lighting.GroundRadiance(options_.peak_cones);
   const std::size_t pixels = static_cast<std::size_t>(w) * h;
+  const std::size_t samples = static_cast<std::size_t>(sw) * sh;
   std::vector<detail::PixelCounts> counts;
+  std::vector<float> sample_alpha;  // the car's coverage per shaded sample, for the counts
 
   // Shade.
   t0 = Clock::now();
   if (device == ShadeDevice::kGpu) {
     gl::Program& sp = im.shade_program;
     const glm::mat3 wfc(camera.world_from_camera), efw(im.lighting.env_from_world);
-    glProgramUniform2i(sp.id(), sp.Uniform("uSize"), w, h);
+    glProgramUniform2i(sp.id(), sp.Uniform("uSize"), sw, sh);
     sp.Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
            static_cast<float>(camera.position.z))
         .SetMat3("uWorldFromCamera", glm::value_ptr(wfc))
-        .Set("uFocal", static_cast<float>(f))
+        .Set("uFocal", static_cast<float>(sf))
         .SetMat3("uEnvFromWorld", glm::value_ptr(efw))
         .Set("uConstant", im.lighting.constant.x, im.lighting.constant.y, im.lighting.constant.z)
         .Set("uPeakCount", static_cast<int>(im.lighting.peaks.size()))
@@ -880,8 +901,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     im.g_position.BindImage(0, GL_READ_ONLY);
     im.g_normal.BindImage(1, GL_READ_ONLY);
     im.g_base.BindImage(2, GL_READ_ONLY);
-    im.car_layer.BindImage(3, GL_WRITE_ONLY);
-    im.shadow_layer.BindImage(4, GL_WRITE_ONLY);
+    (k > 1 ? im.shaded_car : im.car_layer).BindImage(3, GL_WRITE_ONLY);
+    (k > 1 ? im.shaded_shadow : im.shadow_layer).BindImage(4, GL_WRITE_ONLY);
     im.srbf_buffer.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
     im.peak_buffer.BindBase(GL_SHADER_STORAGE_BUFFER, 1);
     im.bin_levels.BindBase(GL_SHADER_STORAGE_BUFFER, 2);
@@ -893,12 +914,12 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
     if (monte_carlo) {
       gl::Program& mp = im.mc_program;
-      glProgramUniform2i(mp.id(), mp.Uniform("uSize"), w, h);
+      glProgramUniform2i(mp.id(), mp.Uniform("uSize"), sw, sh);
       glProgramUniform1ui(mp.id(), mp.Uniform("uSeed"), options_.monte_carlo_seed);
       mp.Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
              static_cast<float>(camera.position.z))
           .SetMat3("uWorldFromCamera", glm::value_ptr(wfc))
-          .Set("uFocal", static_cast<float>(f))
+          .Set("uFocal", static_cast<float>(sf))
           .SetMat3("uEnvFromWorld", glm::value_ptr(efw))
           .Set("uTermsPerMaterial", kTermsPerMaterial)
           .Set("uMaterialCount", static_cast<int>(im.materials.size()))
@@ -945,12 +966,26 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         im.bvh_nodes.BindBase(GL_SHADER_STORAGE_BUFFER, 11);
         im.bvh_triangles.BindBase(GL_SHADER_STORAGE_BUFFER, 12);
       }
-      mp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+      mp.Use().DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh));
     } else {
       im.cosine_table.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
-      sp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+      sp.Use().DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh));
     }
     glMemoryBarrier(GL_ALL_BARRIER_BITS);
+    if (k > 1) {
+      gl::Program& rp = im.resolve_program;
+      const std::vector<float> weights = detail::SupersampleWeights(k);
+      glProgramUniform2i(rp.id(), rp.Uniform("uSize"), w, h);
+      glProgramUniform2i(rp.id(), rp.Uniform("uShadedSize"), sw, sh);
+      rp.Set("uFactor", k);
+      glProgramUniform1fv(rp.id(), rp.Uniform("uWeights"), static_cast<GLsizei>(weights.size()), weights.data());
+      im.shaded_car.BindImage(0, GL_READ_ONLY);
+      im.shaded_shadow.BindImage(1, GL_READ_ONLY);
+      im.car_layer.BindImage(2, GL_WRITE_ONLY);
+      im.shadow_layer.BindImage(3, GL_WRITE_ONLY);
+      rp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+      glMemoryBarrier(GL_ALL_BARRIER_BITS);
+    }
     gl::Finish();
     out.ms.shade = MsSince(t0);
 
@@ -997,20 +1032,27 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     out.shadow = to_rgb(rgba(im.shadow_layer), &out.ground_mask);
     out.composite = to_rgb(rgba(im.composite_layer), nullptr);
     out.background = to_rgb(rgba(im.background_layer), nullptr);
-    const auto raw = im.counts.Read<glm::uvec4>(pixels);
-    counts.resize(pixels);
-    for (std::size_t i = 0; i < pixels; ++i) counts[i] = {raw[i].x, raw[i].y, raw[i].z, raw[i].w};
+    const auto raw = im.counts.Read<glm::uvec4>(samples);
+    counts.resize(samples);
+    for (std::size_t i = 0; i < samples; ++i) counts[i] = {raw[i].x, raw[i].y, raw[i].z, raw[i].w};
+    if (k > 1) {
+      const std::vector<float> car = rgba(im.shaded_car);
+      sample_alpha.resize(samples);
+      for (std::size_t i = 0; i < samples; ++i) sample_alpha[i] = car[4 * i + 3];
+    } else {
+      sample_alpha = out.car_alpha;
+    }
   } else {
     detail::GBuffer g;
-    g.width = w;
-    g.height = h;
+    g.width = sw;
+    g.height = sh;
     g.position = im.g_position.Read<float>(GL_RGBA, GL_FLOAT, 4);
     g.normal = im.g_normal.Read<float>(GL_RGBA, GL_FLOAT, 4);
     g.base = im.g_base.Read<float>(GL_RGBA, GL_FLOAT, 4);
     t0 = Clock::now();  // the shading stage alone, as on the GPU
     detail::ReferenceInputs in;
     in.gbuffer = &g;
-    in.camera = camera;
+    in.camera = shaded_camera;
     in.materials = &im.material_terms;
     in.emission = &im.emission;
     in.lighting = &im.lighting;
@@ -1018,7 +1060,15 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     in.grid = geometry ? im.cpu_grid.get() : nullptr;
     in.options = options_;
     in.ground_centre = ground_centre;
-    detail::ShadeReference(in, &out, &counts);
+    if (k > 1) {
+      RenderResult shaded;
+      detail::ShadeReference(in, &shaded, &counts);
+      detail::ResolveSupersampled(shaded, k, w, h, &out);
+      sample_alpha = std::move(shaded.car_alpha);
+    } else {
+      detail::ShadeReference(in, &out, &counts);
+      sample_alpha = out.car_alpha;
+    }
     out.ms.shade = MsSince(t0);
 
     t0 = Clock::now();
@@ -1049,10 +1099,10 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   c.lighting_sgs = im.lighting.sg_count;
   c.peaks = static_cast<int>(im.lighting.peaks.size());
   long long lobes = 0, cones = 0, sgs = 0, triples = 0;
-  for (std::size_t i = 0; i < pixels; ++i) {
+  for (std::size_t i = 0; i < samples; ++i) {
     c.cones_total += counts[i].cones;
     c.triples_total += counts[i].triples;
-    if (out.car_alpha[i] > 0) {
+    if (sample_alpha[i] > 0) {
       ++c.car_pixels;
       lobes += counts[i].lobes;
       cones += counts[i].cones;

@@ -72,6 +72,30 @@ TEST(RunRender, CpuAndGpuAgree) {
   EXPECT_NEAR(luma[0] / luma[1], 1.0, 0.01);
 }
 
+// --supersample 2: four shaded samples per pixel (the counts say so), the output at --size, and
+// the car's outline with partial coverage where point sampling has none.
+TEST(RunRender, SupersampleShadesFourSamplesPerPixelAndSoftensTheOutline) {
+  if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
+  ScratchDir d("run_render_ss");
+  int car[2] = {0, 0}, partial[2] = {0, 0};
+  for (int k = 1; k <= 2; ++k) {
+    const std::string dir = (d.dir / std::to_string(k)).string();
+    const CliRun r = RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 --supersample " + std::to_string(k) +
+                             " --json --layers " + dir + " --out " + dir + "/frame.exr");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j.at("counts").at("supersample").get<int>(), k);
+    car[k - 1] = j.at("counts").at("car_pixels").get<int>();
+    const auto alpha = odvr::image::LoadImage(dir + "/car_alpha.exr");
+    EXPECT_EQ(alpha.width, 64);
+    EXPECT_EQ(alpha.height, 36);
+    for (int i = 0; i < 64 * 36; ++i) partial[k - 1] += alpha.rgb[3 * i] > 0.f && alpha.rgb[3 * i] < 1.f;
+  }
+  EXPECT_NEAR(car[1], 4.0 * car[0], 0.05 * 4 * car[0]);
+  EXPECT_EQ(partial[0], 0);
+  EXPECT_GT(partial[1], 20);
+}
+
 TEST(RunRender, ClearErrors) {
   ScratchDir d("run_render_err");
   const std::string out = " --out " + (d.dir / "x.png").string();
@@ -89,6 +113,7 @@ TEST(RunRender, ClearErrors) {
       {"--model " + kCar + " --env " + kPano + " --cones 5" + out, 2, "--cones"},
       {"--model " + kCar + " --env " + kPano + " --material paint=foo:1" + out, 2, "unknown BRDF"},
       {"--model " + kCar + " --env " + kPano + " --voxels 100" + out, 2, "--voxels"},
+      {"--model " + kCar + " --env " + kPano + " --supersample 5" + out, 2, "--supersample"},
       {"--model " + kCar + " --env " + kPano, 2, "--out"},
   };
   for (const auto& c : cases) {

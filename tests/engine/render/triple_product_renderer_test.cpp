@@ -20,6 +20,7 @@
 
 #include "engine/core/error.h"
 #include "engine/lighting/sg.h"
+#include "engine/render/triple_product_internal.h"
 #include "engine/sphere/equirect.h"
 #include "tests/engine/gl/gl_test_context.h"
 #include "tests/engine/render/render_test_scenes.h"
@@ -134,6 +135,39 @@ TEST(TripleProductRenderer, OptionsAreChecked) {
   RenderOptions rings;
   rings.cone_rings = 4;
   EXPECT_THROW(rings.Check(), Error);
+  for (int k : {0, -1, kMaxSupersample + 1}) {
+    RenderOptions bad;
+    bad.supersample = k;
+    EXPECT_THROW(bad.Check(), Error) << k;
+  }
+}
+
+// Cycles' default pixel filter: Blackman-Harris over 1.5 output pixels, 1 at the pixel's centre,
+// symmetric, 0 at ±0.75 and beyond; at k = 2 that is the 2×2 box (the neighbours' samples lie at
+// ±0.75 or farther), at k = 3 and 4 it reaches into the neighbouring pixels.
+TEST(TripleProductRenderer, SupersampleWeightsAreCyclesPixelFilter) {
+  for (int k = 1; k <= kMaxSupersample; ++k) {
+    const std::vector<float> w = detail::SupersampleWeights(k);
+    ASSERT_EQ(w.size(), static_cast<std::size_t>(3 * k));
+    for (int j = -k; j < 2 * k; ++j) {
+      const double offset = (j + 0.5) / k - 0.5;
+      const float wj = w[static_cast<std::size_t>(j + k)];
+      EXPECT_FLOAT_EQ(wj, w[static_cast<std::size_t>(k - 1 - j + k)]) << k << " " << j;  // offset → −offset
+      if (std::abs(offset) >= 0.75 - 1e-12) {
+        EXPECT_EQ(wj, 0.f) << k << " " << j;
+      } else {
+        EXPECT_GT(wj, 0.f) << k << " " << j;
+      }
+      if (std::abs(offset) < 1e-12) {
+        EXPECT_NEAR(wj, 1.0, 1e-6);
+      }
+    }
+  }
+  const std::vector<float> box = detail::SupersampleWeights(2);
+  EXPECT_EQ(box[0] + box[1] + box[4] + box[5], 0.f);
+  EXPECT_FLOAT_EQ(box[2], box[3]);
+  const std::vector<float> three = detail::SupersampleWeights(3);
+  EXPECT_GT(three[2], 0.f);  // offset −2/3: the left neighbour's last sample
 }
 
 TEST_F(TripleProductRendererGL, GpuMatchesCpuReference) {
@@ -203,6 +237,65 @@ TEST_F(TripleProductRendererGL, GpuMatchesCpuReferenceForEveryLobeMode) {
         EXPECT_GT(gpu.counts.lobes_per_car_pixel, 2.5);
       }
     }
+}
+
+// RenderOptions::supersample: the GPU renders k² samples per pixel and resolves them
+// (render_resolve.comp). Its output must be the same samples, rendered at k× the size without
+// supersampling, resolved by the CPU reference (detail::ResolveSupersampled); the CPU shading path
+// must agree as the unsupersampled paths do; and the car's silhouette must come out with
+// fractional coverage (point sampling gives 0 or 1) while the covered area stays the same.
+TEST_F(TripleProductRendererGL, SupersampledIsTheSamplesResolvedWithCyclesPixelFilter) {
+  for (int k : {2, 3}) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    TripleProductRenderer plain(SphereAndBox(), glm::dmat4(1.0), o);
+    o.supersample = k;
+    TripleProductRenderer super(SphereAndBox(), glm::dmat4(1.0), o);
+    plain.SetLighting(SunnySky());
+    super.SetLighting(SunnySky());
+    const int w = 48, h = 32;
+    const RenderResult samples = plain.Render(View(k * w, k * h), ShadeDevice::kGpu);
+    const RenderResult point = plain.Render(View(w, h), ShadeDevice::kGpu);
+    const RenderResult gpu = super.Render(View(w, h), ShadeDevice::kGpu);
+    const RenderResult cpu = super.Render(View(w, h), ShadeDevice::kCpu);
+    RenderResult expected;
+    detail::ResolveSupersampled(samples, k, w, h, &expected);
+    ASSERT_TRUE(AllFinite(gpu.car) && AllFinite(gpu.shadow) && AllFinite(cpu.car));
+    ASSERT_EQ(gpu.car.width, w);
+    ASSERT_EQ(gpu.car_alpha.size(), static_cast<std::size_t>(w * h));
+    double worst_car = 0, worst_alpha = 0, worst_shadow = 0, worst_cpu_alpha = 0;
+    int edge = 0, point_edge = 0;
+    double area = 0, point_area = 0;
+    for (std::size_t i = 0; i < gpu.car_alpha.size(); ++i) {
+      worst_alpha = std::max(worst_alpha, double(std::abs(gpu.car_alpha[i] - expected.car_alpha[i])));
+      worst_cpu_alpha = std::max(worst_cpu_alpha, double(std::abs(gpu.car_alpha[i] - cpu.car_alpha[i])));
+      for (int c = 0; c < 3; ++c) {
+        const double e = expected.car.rgb[3 * i + c];
+        worst_car = std::max(worst_car, std::abs(gpu.car.rgb[3 * i + c] - e) / std::max(1e-3, std::abs(e)));
+        worst_shadow =
+            std::max(worst_shadow, double(std::abs(gpu.shadow.rgb[3 * i + c] - expected.shadow.rgb[3 * i + c])));
+      }
+      edge += gpu.car_alpha[i] > 0.01f && gpu.car_alpha[i] < 0.99f;
+      point_edge += point.car_alpha[i] > 0.f && point.car_alpha[i] < 1.f;
+      area += gpu.car_alpha[i];
+      point_area += point.car_alpha[i];
+    }
+    const Diff car = Compare(gpu.car, cpu.car, gpu.car_alpha);
+    std::printf(
+        "k = %d: GPU resolve vs CPU resolve of the same samples: car %.2e rel, alpha %.2e, shadow %.2e; "
+        "CPU shading vs GPU mean %.4f p99 %.4f rel; %d edge pixels (point sampled %d), area %.1f vs %.1f px\n",
+        k, worst_car, worst_alpha, worst_shadow, car.mean_rel, car.p99_rel, edge, point_edge, area, point_area);
+    EXPECT_LT(worst_car, 1e-5) << k;
+    EXPECT_LT(worst_alpha, 1e-6) << k;
+    EXPECT_LT(worst_shadow, 1e-5) << k;
+    EXPECT_LT(worst_cpu_alpha, 1e-6) << k;
+    EXPECT_LT(car.mean_rel, 0.01) << k;
+    EXPECT_LT(car.p99_rel, 0.05) << k;
+    EXPECT_EQ(point_edge, 0) << k;
+    EXPECT_GT(edge, 30) << k;
+    EXPECT_NEAR(area, point_area, 0.03 * point_area) << k;
+    EXPECT_EQ(gpu.counts.car_pixels, samples.counts.car_pixels) << "counts are per shaded sample";
+  }
 }
 
 // Mean of the car layer's luminance over covered pixels.
