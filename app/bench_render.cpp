@@ -47,6 +47,9 @@ struct BenchRenderOptions {
   // Each k > 1: the default configuration's SG row and the Monte-Carlo rows again with k×k shaded
   // samples per pixel (RenderOptions::supersample), MC at samples/k² each (the same rays per pixel).
   std::vector<int> supersample = {1, 2};
+  // And for each k > 1, one SG row per contrast (RenderOptions::supersample_contrast; 0: every
+  // sample of every pixel).
+  std::vector<double> supersample_contrast = {0, render::RenderOptions{}.supersample_contrast};
   std::string images_dir;     // non-empty: each scored row's car layer and shadow ratio as EXR there
   bool lobe_modes = true;     // also the four warp × cosine modes at the default configuration
   bool hd_row = true;         // a 1280×720 row (shade ms)
@@ -63,6 +66,7 @@ struct Row {
   int width = 0, height = 0;
   int levels = 0, cones = 0, voxels = 0, samples = 0;  // samples: MC rays per pixel
   int supersample = 1;
+  double contrast = 0;  // RenderOptions::supersample_contrast (0 with supersample 1)
   double mean_rel = 0, rel_l1 = 0, bias = 0, ssim = 0, shadow_mae = -1;  // shadow_mae < 0: no shadow reference
   double shade_ms = 0, total_ms = 0;
   int car_pixels = 0, shadow_pixels = 0;
@@ -281,9 +285,10 @@ std::string LobeName(const material::LobeOptions& l) {
 
 Row RenderRow(const Reference& ref, const std::string& method, int levels, int cones, int voxels, int samples,
               const material::LobeOptions& lobes, int width = 0, int height = 0, unsigned seed = 1,
-              const std::string& images_dir = "", int supersample = 1) {
+              const std::string& images_dir = "", int supersample = 1, double contrast = 0) {
   render::RenderOptions o;
   o.supersample = supersample;
+  o.supersample_contrast = contrast;
   o.lighting_levels = levels;
   o.cone_rings = ConeRingsForCount(cones);
   o.voxel_resolution = voxels;
@@ -317,6 +322,7 @@ Row RenderRow(const Reference& ref, const std::string& method, int levels, int c
   row.voxels = voxels;
   row.samples = samples;
   row.supersample = supersample;
+  row.contrast = supersample > 1 ? contrast : 0;
   row.shade_ms = r.ms.shade;
   row.total_ms = r.ms.total;
   if (scored) Score(ref, r, &row);
@@ -327,7 +333,10 @@ Row RenderRow(const Reference& ref, const std::string& method, int levels, int c
         ref.name + "_" + method +
         (method == "sg" ? "_l" + std::to_string(levels) + "_c" + std::to_string(cones) + "_" + row.lobes
                         : "_s" + std::to_string(samples)) +
-        "_v" + std::to_string(voxels) + (supersample > 1 ? "_ss" + std::to_string(supersample) : "") + ".exr";
+        "_v" + std::to_string(voxels) +
+        (supersample > 1 ? "_ss" + std::to_string(supersample) + (contrast > 0 ? fmt::format("_c{}", contrast) : "")
+                         : "") +
+        ".exr";
     image::SaveImage(fs::path(images_dir) / name, r.car);
     image::SaveImage(fs::path(images_dir) / (name.substr(0, name.size() - 4) + "_shadow.exr"), r.shadow);
   }
@@ -336,7 +345,7 @@ Row RenderRow(const Reference& ref, const std::string& method, int levels, int c
 
 const char* kHeader =
     "reference\tmethod\tlobes\twidth\theight\tlevels\tcones\tvoxels\tsamples\tmean_rel\trel_l1\tbias\tssim\t"
-    "shadow_mae\tshadow_px\tcar_px\tshade_ms\ttotal_ms\tsupersample";
+    "shadow_mae\tshadow_px\tcar_px\tshade_ms\ttotal_ms\tsupersample\tsupersample_contrast";
 
 std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
   std::ifstream in(tsv);
@@ -354,8 +363,9 @@ std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
     std::istringstream f(line);
     std::string field;
     while (std::getline(f, field, '\t')) v.push_back(field);
-    // 18 columns: written before supersampling (every row k = 1).
-    if (v.size() != 18 && v.size() != 19) throw Error(tsv.string(), "a row without 19 columns: " + line);
+    // 18 columns: written before supersampling (every row k = 1); 19: before its contrast (every
+    // sample shaded).
+    if (v.size() < 18 || v.size() > 20) throw Error(tsv.string(), "a row without 20 columns: " + line);
     try {
       Row r;
       r.reference = v[0];
@@ -377,6 +387,7 @@ std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
       r.shade_ms = std::stod(v[16]);
       r.total_ms = std::stod(v[17]);
       r.supersample = v.size() > 18 ? std::stoi(v[18]) : 1;
+      r.contrast = v.size() > 19 ? std::stod(v[19]) : 0;
       rows.push_back(r);
     } catch (const std::exception&) {
       throw Error(tsv.string(), "a malformed number in: " + line);
@@ -387,9 +398,10 @@ std::vector<Row> ReadRows(const fs::path& tsv, std::string* machine) {
 
 std::string F(double v, int digits = 3) { return fmt::format("{:.{}f}", v, digits); }
 
-bool IsDefault(const Row& r, const std::string& lobes, int supersample = 1) {
+bool IsDefault(const Row& r, const std::string& lobes, int supersample = 1, double contrast = 0) {
   return r.method == "sg" && r.lobes == lobes && r.levels == kDefaultLevels && r.cones == kDefaultCones &&
-         r.voxels == kDefaultVoxels && r.car_pixels > 0 && r.supersample == supersample;
+         r.voxels == kDefaultVoxels && r.car_pixels > 0 && r.supersample == supersample &&
+         (supersample == 1 || r.contrast == contrast);
 }
 
 // The lobe mode the defaults use (RenderOptions{}.lobes), as the rows name it.
@@ -457,16 +469,21 @@ std::string Targets(const std::vector<Row>& rows) {
   int supersample = 1;  // the largest k > 1 with rows: its own table below
   for (const auto& r : rows)
     if (r.car_pixels > 0) supersample = std::max(supersample, r.supersample);
+  // Its adaptive rows: the largest contrast among them (every sample shaded: 0).
+  double contrast = 0;
+  for (const auto& r : rows)
+    if (r.car_pixels > 0 && r.supersample == supersample) contrast = std::max(contrast, r.contrast);
   std::ostringstream ss_md;
   int met = 0, total = 0, fast = 0, fast_total = 0, fast_at_mc = 0, ss_met = 0, ss_total = 0, ss_fast = 0,
       ss_fast_total = 0;
   for (const auto& name : refs) {
-    const Row *sg = nullptr, *sg_ss = nullptr;
+    const Row *sg = nullptr, *sg_ss = nullptr, *sg_every = nullptr;
     std::vector<const Row*> mc, mc_ss, sg_rows;
     for (const auto& r : rows) {
       if (r.reference != name || r.car_pixels == 0) continue;
       if (IsDefault(r, lobes)) sg = &r;
-      if (supersample > 1 && IsDefault(r, lobes, supersample)) sg_ss = &r;
+      if (supersample > 1 && IsDefault(r, lobes, supersample, contrast)) sg_ss = &r;
+      if (supersample > 1 && contrast > 0 && IsDefault(r, lobes, supersample, 0)) sg_every = &r;
       if (r.method == "sg") sg_rows.push_back(&r);
       if (r.method == "mc" && r.voxels == kDefaultVoxels && r.supersample == 1) mc.push_back(&r);
       if (r.method == "mc" && r.voxels == kDefaultVoxels && r.supersample == supersample) mc_ss.push_back(&r);
@@ -483,9 +500,10 @@ std::string Targets(const std::vector<Row>& rows) {
         speed = bound + F(mc_ms / sg_ss->shade_ms, 1) + "×";
       }
       const Row* best = MostSamples(mc_ss);
-      ss_md << "| " << name << " | " << (sg ? F(sg->mean_rel) : "–") << " | " << F(sg_ss->mean_rel) << " | "
-            << (sg_ss->mean_rel <= 0.10 ? "yes" : "no") << " | " << F(sg_ss->ssim) << " | " << F(sg_ss->shade_ms, 1)
-            << " | " << (mc_ms > 0 ? bound + F(mc_ms, 0) : "–") << " | " << speed << " | "
+      ss_md << "| " << name << " | " << (sg ? F(sg->mean_rel) + ", " + F(sg->shade_ms, 0) : "–") << " | "
+            << (sg_every ? F(sg_every->mean_rel) + ", " + F(sg_every->shade_ms, 0) : "–") << " | " << F(sg_ss->mean_rel)
+            << " | " << (sg_ss->mean_rel <= 0.10 ? "yes" : "no") << " | " << F(sg_ss->ssim) << " | "
+            << F(sg_ss->shade_ms, 1) << " | " << (mc_ms > 0 ? bound + F(mc_ms, 0) : "–") << " | " << speed << " | "
             << (best ? F(best->mean_rel) + ", " + F(best->shade_ms, 0) : "–") << " |\n";
     }
     if (!sg) continue;
@@ -520,10 +538,14 @@ std::string Targets(const std::vector<Row>& rows) {
      << " at MC's best error (the cheapest SG row as accurate).\n";
   if (ss_total > 0)
     md << "\n**Supersampled, " << supersample << "×" << supersample << " shaded samples per pixel** (the default "
-       << "configuration otherwise; the Monte-Carlo rows likewise, at samples/" << supersample * supersample
-       << " each, the same rays per pixel):\n\n| reference | error at 1×1 | error | ≤ 10 % | SSIM | shade ms | MC ms "
-          "at "
-          "that error | speed-up | MC's best: error, ms |\n|---|---|---|---|---|---|---|---|---|\n"
+       << "configuration otherwise"
+       << (contrast > 0 ? fmt::format("; every sample only where a pixel needs it, contrast {}", contrast)
+                        : std::string("; every sample of every pixel"))
+       << "; the Monte-Carlo rows likewise, every sample, at samples/" << supersample * supersample
+       << " each, the same rays per pixel):\n\n| reference | 1×1: error, ms | every sample: error, ms | error | ≤ 10 % "
+          "| "
+          "SSIM | shade ms | MC ms at that error | speed-up | MC's best: error, ms |\n"
+          "|---|---|---|---|---|---|---|---|---|---|\n"
        << ss_md.str() << "\n**Mean relative error ≤ 10 % on car pixels, supersampled:** " << ss_met << " of "
        << ss_total << " references. **≥ 20× faster than MC at equal error** (MC supersampled alike): " << ss_fast
        << " of " << ss_fast_total << ".\n";
@@ -544,7 +566,7 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
     t << r.reference << "\t" << r.method << "\t" << r.lobes << "\t" << r.width << "\t" << r.height << "\t" << r.levels
       << "\t" << r.cones << "\t" << r.voxels << "\t" << r.samples << "\t" << r.mean_rel << "\t" << r.rel_l1 << "\t"
       << r.bias << "\t" << r.ssim << "\t" << r.shadow_mae << "\t" << r.shadow_pixels << "\t" << r.car_pixels << "\t"
-      << r.shade_ms << "\t" << r.total_ms << "\t" << r.supersample << "\n";
+      << r.shade_ms << "\t" << r.total_ms << "\t" << r.supersample << "\t" << r.contrast << "\n";
   WriteTextAtomically(tsv, t.str());
 
   std::ostringstream md;
@@ -560,7 +582,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
      << "axis / as an SG); `mc` rows: the Monte-Carlo shader on the same G-buffer and voxels; `mc-exact` rows: "
      << "the same with shadow rays against the triangles (the ground's lit fraction still from the voxels). `k`: "
         "shaded samples per pixel along each axis (`RenderOptions::supersample`), resolved with Cycles' pixel "
-        "filter (Blackman-Harris, 1.5 px); MC `samples` are rays per pixel. Times are one "
+        "filter (Blackman-Harris, 1.5 px), `c`: every sample only where a pixel needs it "
+        "(`RenderOptions::supersample_contrast`); MC `samples` are rays per pixel. Times are one "
      << "render each, on the device named above.\n\n"
      << "| reference | method | lobes | levels | cones | voxels | samples | k | mean_rel | rel_l1 | bias | ssim | "
         "shadow | shade ms | total ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -568,7 +591,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
     if (r.car_pixels == 0) continue;
     md << "| " << r.reference << " | " << r.method << " | " << r.lobes << " | "
        << (r.levels ? std::to_string(r.levels) : "–") << " | " << (r.cones ? std::to_string(r.cones) : "–") << " | "
-       << r.voxels << " | " << (r.samples ? std::to_string(r.samples) : "–") << " | " << r.supersample << " | "
+       << r.voxels << " | " << (r.samples ? std::to_string(r.samples) : "–") << " | "
+       << (r.contrast > 0 ? fmt::format("{}, c {}", r.supersample, r.contrast) : std::to_string(r.supersample)) << " | "
        << F(r.mean_rel) << " | " << F(r.rel_l1) << " | " << F(r.bias) << " | " << F(r.ssim) << " | "
        << (r.shadow_mae >= 0 ? F(r.shadow_mae) : "–") << " | " << F(r.shade_ms, 1) << " | " << F(r.total_ms, 1)
        << " |\n";
@@ -640,8 +664,9 @@ int RunBenchRender(BenchRenderOptions o) {
     }
     for (int k : o.supersample) {
       if (k == 1) continue;
-      rows.push_back(
-          RenderRow(ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 0, 0, 1, o.images_dir, k));
+      for (double c : o.supersample_contrast)
+        rows.push_back(RenderRow(ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 0, 0, 1,
+                                 o.images_dir, k, c));
       for (int n : o.mc_samples)
         if (n >= k * k)
           rows.push_back(
@@ -680,6 +705,10 @@ CommandFn AddBenchRender(CLI::App* sub) {
                   "Shaded samples per pixel along each axis: 1 and, per k > 1, the default SG row and MC rows again")
       ->delimiter(',')
       ->check(CLI::Range(1, render::kMaxSupersample));
+  sub->add_option("--supersample-contrast", o->supersample_contrast,
+                  "Per k > 1, an SG row at each of these contrasts (0: every sample of every pixel)")
+      ->delimiter(',')
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--images", o->images_dir,
                   "Also write each scored row's car layer and shadow ratio (linear EXR) here");
   sub->add_flag("!--no-lobe-modes", o->lobe_modes, "Skip the warp × cosine rows");

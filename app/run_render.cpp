@@ -28,6 +28,7 @@ struct RenderCliOptions {
   int cones = 7;
   int voxels = 128;
   int supersample = 1;
+  double supersample_contrast = render::RenderOptions{}.supersample_contrast;
   std::string size = "640x360";
   std::string camera;
   std::string model_matrix, env_rotation;
@@ -74,6 +75,7 @@ int RunRender(const RenderCliOptions& o) {
   options.cone_rings = ConeRingsForCount(o.cones);
   options.voxel_resolution = o.voxels;
   options.supersample = o.supersample;
+  options.supersample_contrast = o.supersample_contrast;
   options.peak_cones = !o.no_peaks;
   for (const auto& m : o.materials) options.materials.push_back(render::ParseMaterialOverride(m));
   options.Check();
@@ -187,6 +189,7 @@ int RunRender(const RenderCliOptions& o) {
           {"cones_per_broad_lobe", o.cones},
           {"voxels", o.voxels},
           {"supersample", o.supersample},
+          {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
           {"ground_pixels_occluded", c.ground_pixels},
           {"lobes_per_car_pixel", c.lobes_per_car_pixel},
@@ -239,6 +242,10 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_option("--supersample", o->supersample,
                   "Shade KxK samples per pixel, resolved with Cycles' pixel filter (K² the shading time)")
       ->check(CLI::Range(1, render::kMaxSupersample));
+  sub->add_option("--supersample-contrast", o->supersample_contrast,
+                  "Shade every sample only of pixels whose surfaces differ or whose luminance differs from a "
+                  "neighbour's by more than this fraction (0: every pixel)")
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--camera", o->camera, "px,py,pz,tx,ty,tz,vfov_deg: position, target (world, +Y up, metres)");
   sub->add_option("--material", o->materials,
                   "Override materials: [NAME=]KD,KS,N or [NAME=]MODEL:PARAMS[+MODEL:PARAMS] with MODEL lambert, phong, "

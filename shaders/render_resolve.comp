@@ -12,6 +12,16 @@ uniform ivec2 uSize;        // output
 uniform ivec2 uShadedSize;  // k× the output
 uniform int uFactor;        // k
 uniform float uWeights[12];  // 3k entries: sample offset j − k of the output pixel's k·X
+// RenderOptions::supersample_contrast > 0: a pixel render_flag.comp did not flag had only its
+// sample nearest the centre shaded, which then stands for each of its samples.
+uniform int uAdaptive;
+layout(std430, binding = 9) readonly buffer PixelFlags { uint pixelFlags[]; };
+
+ivec2 shadedSample(ivec2 s) {
+  if (uAdaptive == 0) return s;
+  ivec2 p = s / uFactor;
+  return pixelFlags[p.y * uSize.x + p.x] != 0u ? s : p * uFactor + uFactor / 2;
+}
 
 void main() {
   ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
@@ -25,8 +35,9 @@ void main() {
       int x = uFactor * pixel.x - uFactor + i;
       if (x < 0 || x >= uShadedSize.x || uWeights[i] == 0.0) continue;
       float w = uWeights[j] * uWeights[i];
-      vec4 c = imageLoad(uShadedCar, ivec2(x, y));
-      vec4 s = imageLoad(uShadedShadow, ivec2(x, y));
+      ivec2 sample_ = shadedSample(ivec2(x, y));
+      vec4 c = imageLoad(uShadedCar, sample_);
+      vec4 s = imageLoad(uShadedShadow, sample_);
       wSum += w;
       alpha += w * c.a;
       ground += w * s.a;

@@ -40,6 +40,22 @@ layout(std430, binding = 6) writeonly buffer Counts { uvec4 counts[]; };  // lob
 layout(std430, binding = 8) readonly buffer CosineTable { vec2 cosineTable[]; };
 
 uniform ivec2 uSize;
+// RenderOptions::supersample with supersample_contrast > 0: a first pass shades one sample per
+// pixel (stride k, phase k/2: the sample nearest its centre), a second (uAdaptivePass) the
+// other k² − 1 samples of each pixel render_flag.comp listed, invocation i taking sample
+// i mod (k² − 1) of list entry i / (k² − 1) (i = y · uListPitch + x), so that every invocation
+// that runs shades. Otherwise stride 1, phase 0: every sample.
+uniform int uSampleStride;
+uniform int uSamplePhase;
+uniform int uAdaptivePass;
+uniform int uFactor;      // k
+uniform int uOutWidth;    // the output's width
+uniform int uListPitch;   // invocations per row of the second pass
+uniform int uListSamples; // its invocations: listed pixels × (k² − 1)
+layout(std430, binding = 10) readonly buffer FlaggedList {
+  uint flaggedCount;
+  uint flagged[];
+};
 uniform vec3 uCameraPosition;
 uniform mat3 uWorldFromCamera;  // columns: camera x (right), y (down), z (forward)
 uniform float uFocal;           // pixels
@@ -442,7 +458,16 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
 }
 
 void main() {
-  ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 pixel = ivec2(gl_GlobalInvocationID.xy) * uSampleStride + uSamplePhase;
+  if (uAdaptivePass != 0) {
+    int i = int(gl_GlobalInvocationID.y) * uListPitch + int(gl_GlobalInvocationID.x);
+    if (i >= uListSamples) return;
+    int perPixel = uFactor * uFactor - 1;
+    int sub = i % perPixel;
+    if (sub >= (uFactor / 2) * uFactor + uFactor / 2) ++sub;  // the centre sample is shaded already
+    int entry = int(flagged[i / perPixel]);
+    pixel = ivec2(entry % uOutWidth, entry / uOutWidth) * uFactor + ivec2(sub % uFactor, sub / uFactor);
+  }
   if (pixel.x >= uSize.x || pixel.y >= uSize.y) return;
   uint index = uint(pixel.y * uSize.x + pixel.x);
   gCount = uvec4(0);

@@ -2,6 +2,7 @@
 // Internals shared by the GPU path (triple_product_renderer.cpp) and the CPU reference
 // (triple_product_reference.cpp) of TripleProductRenderer. Not part of the engine's API.
 #include <algorithm>
+#include <cstdint>
 #include <glm/mat3x3.hpp>
 #include <glm/vec2.hpp>
 #include <memory>
@@ -96,6 +97,19 @@ std::vector<float> SupersampleWeights(int k);
 // and ground_mask at k× `width` × `height`; `out` gets them at the output size. The car's
 // radiance is averaged over its coverage (alpha-weighted), the shadow ratio over the samples the
 // car leaves uncovered, so the composite blends at the car's edge as at k× and resolved.
-void ResolveSupersampled(const RenderResult& shaded, int k, int width, int height, RenderResult* out);
+// With `flags` (RenderOptions::supersample_contrast), a pixel whose flag is 0 had only its sample
+// nearest the centre, (k/2, k/2), shaded: it stands for every sample of that pixel.
+void ResolveSupersampled(const RenderResult& shaded, int k, int width, int height, RenderResult* out,
+                         const std::vector<std::uint8_t>* flags = nullptr);
+
+// The shading normals' cosine beyond which a pixel's samples see different surfaces.
+inline constexpr float kSupersampleNormalCos = 0.9f;
+
+// render_flag.comp on the CPU: 1 for each output pixel whose k×k samples of `g` differ in
+// coverage or material or turn their normal past kSupersampleNormalCos, or where the centre
+// samples' car luminance in `shaded` bends across it along a row, column or diagonal by more than
+// `contrast` of the largest of the three, or their shadow ratio by more than `contrast`.
+std::vector<std::uint8_t> FlagPixels(const GBuffer& g, const RenderResult& shaded, int k, int width, int height,
+                                     float contrast);
 
 }  // namespace odvr::render::detail

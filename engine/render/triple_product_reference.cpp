@@ -329,8 +329,17 @@ std::vector<float> SupersampleWeights(int k) {
   return weights;
 }
 
-void ResolveSupersampled(const RenderResult& shaded, int k, int width, int height, RenderResult* out) {
+void ResolveSupersampled(const RenderResult& shaded, int k, int width, int height, RenderResult* out,
+                         const std::vector<std::uint8_t>* flags) {
   const int sw = shaded.car.width, sh = shaded.car.height;
+  // The sample that was shaded for sample (x, y).
+  const auto shaded_index = [&](int x, int y) {
+    if (flags && !(*flags)[static_cast<std::size_t>(y / k) * width + x / k]) {
+      x = x / k * k + k / 2;
+      y = y / k * k + k / 2;
+    }
+    return static_cast<std::size_t>(y) * sw + x;
+  };
   const std::vector<float> weight = SupersampleWeights(k);
   out->car = sphere::EquirectImage(width, height, 0.f);
   out->shadow = sphere::EquirectImage(width, height, 1.f);
@@ -348,7 +357,7 @@ void ResolveSupersampled(const RenderResult& shaded, int k, int width, int heigh
           const int x = k * x_out - k + i;
           if (x < 0 || x >= sw || weight[static_cast<std::size_t>(i)] == 0.f) continue;
           const float w = weight[static_cast<std::size_t>(j)] * weight[static_cast<std::size_t>(i)];
-          const std::size_t s = static_cast<std::size_t>(y) * sw + x;
+          const std::size_t s = shaded_index(x, y);
           const float a = shaded.car_alpha[s];
           w_sum += w;
           alpha += w * a;
@@ -373,6 +382,41 @@ void ResolveSupersampled(const RenderResult& shaded, int k, int width, int heigh
         out->shadow.rgb[3 * o + c] = shadow[c];
       }
     }
+}
+
+std::vector<std::uint8_t> FlagPixels(const GBuffer& g, const RenderResult& shaded, int k, int width, int height,
+                                     float contrast) {
+  const int sw = g.width;
+  const auto luma = [](const float* c) { return c[0] * 0.2126f + c[1] * 0.7152f + c[2] * 0.0722f; };
+  const auto centre = [&](int x, int y) { return static_cast<std::size_t>(y * k + k / 2) * sw + (x * k + k / 2); };
+  std::vector<std::uint8_t> flags(static_cast<std::size_t>(width) * height, 0);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const std::size_t c = centre(x, y);
+      const float material = g.position[4 * c + 3];
+      const glm::vec3 n(g.normal[4 * c], g.normal[4 * c + 1], g.normal[4 * c + 2]);
+      bool flag = false;
+      for (int sy = 0; sy < k; ++sy)
+        for (int sx = 0; sx < k; ++sx) {
+          const std::size_t s = static_cast<std::size_t>(y * k + sy) * sw + (x * k + sx);
+          const glm::vec3 ns(g.normal[4 * s], g.normal[4 * s + 1], g.normal[4 * s + 2]);
+          if (g.position[4 * s + 3] != material || (material > 0 && glm::dot(ns, n) < kSupersampleNormalCos))
+            flag = true;
+        }
+      const float car = luma(&shaded.car.rgb[3 * c]), shadow = luma(&shaded.shadow.rgb[3 * c]);
+      constexpr int kDirections[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+      for (const auto& d : kDirections) {
+        const int ax = x - d[0], ay = y - d[1], bx = x + d[0], by = y + d[1];
+        if (std::min({ax, ay, bx, by}) < 0 || std::max(ax, bx) >= width || std::max(ay, by) >= height) continue;
+        const std::size_t a = centre(ax, ay), b = centre(bx, by);
+        const float ca = luma(&shaded.car.rgb[3 * a]), cb = luma(&shaded.car.rgb[3 * b]);
+        if (std::abs(ca + cb - 2.0f * car) > contrast * std::max({car, ca, cb}) ||
+            std::abs(luma(&shaded.shadow.rgb[3 * a]) + luma(&shaded.shadow.rgb[3 * b]) - 2.0f * shadow) > contrast)
+          flag = true;
+      }
+      flags[static_cast<std::size_t>(y) * width + x] = flag ? 1 : 0;
+    }
+  return flags;
 }
 
 }  // namespace odvr::render::detail

@@ -362,6 +362,8 @@ void RenderOptions::Check() const {
   if (supersample < 1 || supersample > kMaxSupersample)
     throw Error("render supersample",
                 "must be in 1.." + std::to_string(kMaxSupersample) + ", got " + std::to_string(supersample));
+  if (!(supersample_contrast >= 0 && supersample_contrast <= 1))
+    throw Error("render supersample_contrast", "must be in [0, 1]");
   visibility::ConeSubsampleOptions c = cones;
   c.rings = cone_rings;
   c.Check();
@@ -413,7 +415,7 @@ struct TripleProductRenderer::Impl {
   int bvh_triangle_count = 0;
 
   gl::Program gbuffer_program{gl::NoCreate}, shade_program{gl::NoCreate}, composite_program{gl::NoCreate},
-      resolve_program{gl::NoCreate};
+      resolve_program{gl::NoCreate}, flag_program{gl::NoCreate};
   int fb_width = 0, fb_height = 0, out_width = 0, out_height = 0;
   gl::Framebuffer framebuffer{gl::NoCreate};
   gl::Texture g_position{gl::NoCreate}, g_normal{gl::NoCreate}, g_base{gl::NoCreate}, g_depth{gl::NoCreate};
@@ -422,6 +424,9 @@ struct TripleProductRenderer::Impl {
   // RenderOptions::supersample > 1: the shading's car and shadow layers at the G-buffer's size,
   // resolved into car_layer and shadow_layer at the output's.
   gl::Texture shaded_car{gl::NoCreate}, shaded_shadow{gl::NoCreate};
+  // RenderOptions::supersample_contrast: per output pixel, and the flagged ones listed (a count,
+  // then the pixels' indices).
+  gl::Buffer pixel_flags{gl::NoCreate}, flagged_list{gl::NoCreate};
   gl::Buffer counts{gl::NoCreate};
 
   const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb) {
@@ -458,6 +463,10 @@ struct TripleProductRenderer::Impl {
     const bool supersampled = w != out_w || h != out_h;
     shaded_car = supersampled ? rgba32(w, h) : gl::Texture(gl::NoCreate);
     shaded_shadow = supersampled ? rgba32(w, h) : gl::Texture(gl::NoCreate);
+    pixel_flags = gl::Buffer();
+    pixel_flags.Allocate(static_cast<std::size_t>(out_w) * out_h * 4);
+    flagged_list = gl::Buffer();
+    flagged_list.Allocate(4 + static_cast<std::size_t>(out_w) * out_h * 4);
     g_depth = gl::Texture::Create2D(GL_DEPTH_COMPONENT32F, w, h);
     framebuffer = gl::Framebuffer();
     framebuffer.AttachColor(g_position, 0).AttachColor(g_normal, 1).AttachColor(g_base, 2).AttachDepth(g_depth);
@@ -484,7 +493,10 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   im.shade_program = gl::ShaderLibrary::Compute("render_shade.comp",
                                                 "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n");
   im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
-  if (options_.supersample > 1) im.resolve_program = gl::ShaderLibrary::Compute("render_resolve.comp");
+  if (options_.supersample > 1) {
+    im.resolve_program = gl::ShaderLibrary::Compute("render_resolve.comp");
+    im.flag_program = gl::ShaderLibrary::Compute("render_flag.comp");
+  }
   if (options_.monte_carlo_samples > 0) im.mc_program = gl::ShaderLibrary::Compute("render_mc.comp");
   im.white = gl::Texture::Create2D(GL_RGBA8, 1, 1);
   const std::uint8_t white[4] = {255, 255, 255, 255};
@@ -773,6 +785,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   shaded_camera.width = k * w;
   shaded_camera.height = k * h;
   const int sw = shaded_camera.width, sh = shaded_camera.height;
+  // Adaptive supersampling (RenderOptions::supersample_contrast) in the SG shader only.
+  const bool adaptive = k > 1 && options_.supersample_contrast > 0 && !monte_carlo;
   im.EnsureTargets(sw, sh, w, h);
   const glm::dmat3 camera_from_world = glm::transpose(camera.world_from_camera);
   const double f = camera.focal_px(), sf = shaded_camera.focal_px();
@@ -969,7 +983,54 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       mp.Use().DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh));
     } else {
       im.cosine_table.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
-      sp.Use().DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh));
+      im.flagged_list.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
+      sp.Set("uOutWidth", w).Set("uFactor", k).Set("uAdaptivePass", 0);
+      if (adaptive) {
+        // The samples a pass leaves unshaded must read as empty in the counts and the coverage.
+        glClearNamedBufferData(im.counts.id(), GL_RGBA32UI, GL_RGBA_INTEGER, GL_UNSIGNED_INT, nullptr);
+        glClearTexImage(im.shaded_car.id(), 0, GL_RGBA, GL_FLOAT, nullptr);
+        glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        sp.Set("uSampleStride", k)
+            .Set("uSamplePhase", k / 2)
+            .Use()
+            .DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+        glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        gl::Program& fp = im.flag_program;
+        glProgramUniform2i(fp.id(), fp.Uniform("uSize"), w, h);
+        fp.Set("uFactor", k)
+            .Set("uContrast", static_cast<float>(options_.supersample_contrast))
+            .Set("uNormalCos", detail::kSupersampleNormalCos);
+        im.g_position.BindImage(0, GL_READ_ONLY);
+        im.g_normal.BindImage(1, GL_READ_ONLY);
+        im.shaded_car.BindImage(2, GL_READ_ONLY);
+        im.shaded_shadow.BindImage(3, GL_READ_ONLY);
+        im.pixel_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
+        const std::uint32_t zero = 0;
+        im.flagged_list.SubData(0, 4, &zero);
+        fp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+        glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        std::uint32_t listed = 0;
+        im.flagged_list.Read(0, 4, &listed);
+        const long long list_samples = static_cast<long long>(listed) * (k * k - 1);
+        constexpr int kListPitch = 256;
+        im.g_position.BindImage(0, GL_READ_ONLY);
+        im.g_normal.BindImage(1, GL_READ_ONLY);
+        im.g_base.BindImage(2, GL_READ_ONLY);
+        im.shaded_car.BindImage(3, GL_WRITE_ONLY);
+        im.shaded_shadow.BindImage(4, GL_WRITE_ONLY);
+        sp.Set("uAdaptivePass", 1)
+            .Set("uListPitch", kListPitch)
+            .Set("uListSamples", static_cast<int>(list_samples))
+            .Set("uSampleStride", 1)
+            .Set("uSamplePhase", 0);
+        if (list_samples > 0)
+          sp.Use().DispatchCovering(kListPitch, static_cast<unsigned>((list_samples + kListPitch - 1) / kListPitch));
+      } else {
+        sp.Set("uSampleStride", 1)
+            .Set("uSamplePhase", 0)
+            .Use()
+            .DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh));
+      }
     }
     glMemoryBarrier(GL_ALL_BARRIER_BITS);
     if (k > 1) {
@@ -977,7 +1038,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       const std::vector<float> weights = detail::SupersampleWeights(k);
       glProgramUniform2i(rp.id(), rp.Uniform("uSize"), w, h);
       glProgramUniform2i(rp.id(), rp.Uniform("uShadedSize"), sw, sh);
-      rp.Set("uFactor", k);
+      rp.Set("uFactor", k).Set("uAdaptive", adaptive ? 1 : 0);
+      im.pixel_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
       glProgramUniform1fv(rp.id(), rp.Uniform("uWeights"), static_cast<GLsizei>(weights.size()), weights.data());
       im.shaded_car.BindImage(0, GL_READ_ONLY);
       im.shaded_shadow.BindImage(1, GL_READ_ONLY);
@@ -1035,6 +1097,12 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     const auto raw = im.counts.Read<glm::uvec4>(samples);
     counts.resize(samples);
     for (std::size_t i = 0; i < samples; ++i) counts[i] = {raw[i].x, raw[i].y, raw[i].z, raw[i].w};
+    if (adaptive) {
+      const auto flags = im.pixel_flags.Read<std::uint32_t>(pixels);
+      out.sampled_fully.assign(flags.begin(), flags.end());
+    } else if (k > 1) {
+      out.sampled_fully.assign(pixels, 1);
+    }
     if (k > 1) {
       const std::vector<float> car = rgba(im.shaded_car);
       sample_alpha.resize(samples);
@@ -1063,7 +1131,23 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     if (k > 1) {
       RenderResult shaded;
       detail::ShadeReference(in, &shaded, &counts);
-      detail::ResolveSupersampled(shaded, k, w, h, &out);
+      if (adaptive) {
+        // Every sample is shaded here; the ones the GPU would not shade are left out of the
+        // result, the counts and the coverage alike.
+        out.sampled_fully = detail::FlagPixels(g, shaded, k, w, h, static_cast<float>(options_.supersample_contrast));
+        for (int y = 0; y < sh; ++y)
+          for (int x = 0; x < sw; ++x) {
+            const std::size_t s = static_cast<std::size_t>(y) * sw + x;
+            if (!out.sampled_fully[static_cast<std::size_t>(y / k) * w + x / k] && (x % k != k / 2 || y % k != k / 2)) {
+              counts[s] = {};
+              shaded.car_alpha[s] = 0;
+            }
+          }
+        detail::ResolveSupersampled(shaded, k, w, h, &out, &out.sampled_fully);
+      } else {
+        out.sampled_fully.assign(pixels, 1);
+        detail::ResolveSupersampled(shaded, k, w, h, &out);
+      }
       sample_alpha = std::move(shaded.car_alpha);
     } else {
       detail::ShadeReference(in, &out, &counts);
@@ -1112,6 +1196,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       ++c.ground_pixels;
     }
   }
+  c.pixels_sampled_fully = static_cast<int>(std::count(out.sampled_fully.begin(), out.sampled_fully.end(), 1));
   if (c.car_pixels > 0) {
     c.lobes_per_car_pixel = static_cast<double>(lobes) / c.car_pixels;
     c.cones_per_car_pixel = static_cast<double>(cones) / c.car_pixels;

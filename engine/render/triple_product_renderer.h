@@ -39,6 +39,7 @@
 // stored top row first. Lighting SG axes are in the lighting's own frame (an equirect frame's,
 // engine/sphere/equirect.h) and `world_from_lighting` rotates them into the world; the overlap
 // bins are queried in the lighting frame.
+#include <cstdint>
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec3.hpp>
@@ -142,10 +143,20 @@ struct RenderOptions {
   // Shaded samples per output pixel along each axis (1..4): the G-buffer and the shading run at
   // k× the camera's size and each layer is resolved to it with Cycles' default pixel filter
   // (Blackman-Harris, 1.5 px wide), so panel edges, spokes and highlights narrower than a pixel
-  // are averaged over it instead of point-sampled. k² the shading time; against the Cycles
-  // references k = 2 took the glossy paints' and street_a's mean relative error down by
-  // 0.007–0.017 and the diffuse ones' by 0.001–0.005 (docs/benchmarks/render.md).
+  // are averaged over it instead of point-sampled. Against the Cycles references k = 2 took the
+  // glossy paints' and street_a's mean relative error down by 0.007–0.017 and the diffuse ones'
+  // by 0.001–0.005; k = 3 did no better (its filter reaches into the neighbours' samples)
+  // (docs/benchmarks/render.md, render_accuracy.md).
   int supersample = 1;
+  // With supersample > 1, each pixel's other samples are shaded only where it needs them
+  // (render_flag.comp): where its samples see different surfaces (coverage, material, a normal
+  // turning past 25°) or where the car's luminance at the samples nearest the pixels' centres
+  // bends across it (|Y₋ + Y₊ − 2Y₀| along a row, column or diagonal) by more than this fraction
+  // of the largest (the shadow ratio: by more than this); elsewhere that one sample stands for
+  // the pixel. 0: every sample of every pixel. At 0.05 (k = 2) every reference's error was the
+  // every-sample one's within 0.001, for 1.3–2.2× less shading time; the Monte-Carlo baseline
+  // always shades every sample.
+  double supersample_contrast = 0.05;
   void Check() const;  // throws odvr::Error naming the field
 };
 
@@ -161,6 +172,7 @@ struct RenderCounts {
   double cones_per_car_pixel = 0;    // traced, lobe cones and peak cones
   double sgs_per_car_pixel = 0;      // lighting SGs touched, summed over the lobes
   double triples_per_car_pixel = 0;  // lobe × cone × SG integrals evaluated (0 where unoccluded)
+  int pixels_sampled_fully = 0;      // supersample > 1: pixels whose every sample was shaded
   long long cones_total = 0;         // over every pixel, ground included
   long long triples_total = 0;
 };
@@ -176,6 +188,9 @@ struct RenderResult {
   std::vector<float> ground_mask;    // 1 on ground-plane pixels
   sphere::EquirectImage background;  // what the car is composited over
   sphere::EquirectImage composite;
+  // supersample > 1: 1 where every sample of the pixel was shaded (RenderOptions::
+  // supersample_contrast), width × height; empty otherwise.
+  std::vector<std::uint8_t> sampled_fully;
   RenderCounts counts;
   RenderTimings ms;
 };

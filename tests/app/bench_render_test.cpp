@@ -45,9 +45,11 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
     tsv << "paint\tsg\tsplit-axis\t320\t180\t2\t7\t128\t0\t0.25\t0.25\t1.0\t0.8\t-1\t0\t900\t20\t30\n";
     tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t4\t0.5\t0.5\t1.0\t0.2\t-1\t0\t900\t100\t110\n";
     tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t64\t0.2\t0.2\t1.0\t0.5\t-1\t0\t900\t2000\t2010\n";
-    // Supersampled 2×2 (a 19th column; the rows above, written before it, are 1×1): the SG row at
-    // 0.12 in 10 ms, MC at 0.36 in 100 ms and 0.04 in 900 ms puts 0.12 at 300 ms, 30× the SG time.
+    // Supersampled 2×2 (a 19th column; the rows above, written before it, are 1×1), every sample
+    // shaded (no 20th column: contrast 0) at 0.12 in 10 ms, and adaptively (contrast 0.1) at 0.12
+    // in 6 ms; MC at 0.36 in 100 ms and 0.04 in 900 ms puts 0.12 at 300 ms, 50× the adaptive time.
     tsv << "car\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.12\t0.1\t0.9\t0.85\t0.05\t100\t1000\t10\t20\t2\n";
+    tsv << "car\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.12\t0.1\t0.9\t0.84\t0.05\t100\t1000\t6\t16\t2\t0.1\n";
     tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t4\t0.36\t0.3\t0.9\t0.3\t0.1\t100\t1000\t100\t120\t2\n";
     tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t64\t0.04\t0.04\t0.9\t0.6\t0.05\t100\t1000\t900\t920\t2\n";
     // The timing-only row at 1280×720: 250 ms in all is 4 fps.
@@ -55,7 +57,7 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
   }
   const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("14 rows"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("15 rows"), std::string::npos) << r.out;
   const std::string md = ReadText(d.dir / "render.md");
   EXPECT_NE(md.find("a test machine"), std::string::npos);
   // car: no SG row reaches MC's best error (0.1 at 16 samples); paint: MC's best is 0.2 at 2000
@@ -73,8 +75,12 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
             std::string::npos)
       << md;
   EXPECT_NE(md.find("= 4.00 fps"), std::string::npos) << md;
-  // The supersampled rows: their own table, against the supersampled MC rows only.
-  EXPECT_NE(md.find("| car | 0.200 | 0.120 | no | 0.850 | 10.0 | 300 | 30.0× | 0.040, 900 |"), std::string::npos) << md;
+  // The supersampled rows: their own table, the adaptive row against the supersampled MC rows only,
+  // beside the 1×1 and every-sample rows.
+  EXPECT_NE(md.find("| car | 0.200, 100 | 0.120, 10 | 0.120 | no | 0.840 | 6.0 | 300 | 50.0× | 0.040, 900 |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("contrast 0.1"), std::string::npos) << md;
   EXPECT_NE(md.find("supersampled:** 0 of 1 references. **≥ 20× faster than MC at equal error** (MC supersampled "
                     "alike): 1 of 1"),
             std::string::npos)
@@ -108,10 +114,10 @@ TEST(BenchRenderGL, StudioDiffuseIsWithinTenPercentOfCycles) {
     std::vector<std::string> v;
     std::istringstream cells(line);
     for (std::string c; std::getline(cells, c, '\t');) v.push_back(c);
-    ASSERT_EQ(v.size(), 19u) << line;
+    ASSERT_EQ(v.size(), 20u) << line;
     const double mean_rel = std::stod(v[9]), bias = std::stod(v[11]);
-    std::printf("studio_diffuse against Cycles, %s×%s samples per pixel: mean relative %.4f, bias %.4f\n",
-                v[18].c_str(), v[18].c_str(), mean_rel, bias);
+    std::printf("studio_diffuse against Cycles, %s×%s samples per pixel (contrast %s): mean relative %.4f, bias %.4f\n",
+                v[18].c_str(), v[18].c_str(), v[19].c_str(), mean_rel, bias);
     EXPECT_LT(mean_rel, 0.10);
     EXPECT_GT(bias, 0.97);
     EXPECT_LT(bias, 1.03);
@@ -129,7 +135,7 @@ TEST(BenchRender, ReportOnlyRejectsAMalformedTable) {
   const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("render.tsv"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("19 columns"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("20 columns"), std::string::npos) << r.err;
   const CliRun missing = RunOdvr("bench render --report-only --out " + (d.dir / "nowhere").string());
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.err.find("cannot be read"), std::string::npos) << missing.err;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -72,28 +73,42 @@ TEST(RunRender, CpuAndGpuAgree) {
   EXPECT_NEAR(luma[0] / luma[1], 1.0, 0.01);
 }
 
-// --supersample 2: four shaded samples per pixel (the counts say so), the output at --size, and
-// the car's outline with partial coverage where point sampling has none.
+// --supersample 2 with --supersample-contrast 0: four shaded samples per pixel (the counts say so),
+// the output at --size, and the car's outline with partial coverage where point sampling has
+// none. By default (adaptive) the pixels that need them get their four, the others one.
 TEST(RunRender, SupersampleShadesFourSamplesPerPixelAndSoftensTheOutline) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_ss");
-  int car[2] = {0, 0}, partial[2] = {0, 0};
-  for (int k = 1; k <= 2; ++k) {
-    const std::string dir = (d.dir / std::to_string(k)).string();
-    const CliRun r = RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 --supersample " + std::to_string(k) +
-                             " --json --layers " + dir + " --out " + dir + "/frame.exr");
+  struct Run {
+    std::string args;
+    int car = 0, partial = 0, fully = 0;
+  };
+  Run runs[] = {{"--supersample 1"}, {"--supersample 2 --supersample-contrast 0"}, {"--supersample 2"}};
+  for (std::size_t i = 0; i < 3; ++i) {
+    Run& run = runs[i];
+    const std::string dir = (d.dir / std::to_string(i)).string();
+    const CliRun r = RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 " + run.args + " --json --layers " + dir +
+                             " --out " + dir + "/frame.exr");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const auto j = nlohmann::json::parse(r.out);
-    EXPECT_EQ(j.at("counts").at("supersample").get<int>(), k);
-    car[k - 1] = j.at("counts").at("car_pixels").get<int>();
+    EXPECT_EQ(j.at("counts").at("supersample").get<int>(), i == 0 ? 1 : 2);
+    run.car = j.at("counts").at("car_pixels").get<int>();
+    run.fully = j.at("counts").at("pixels_sampled_fully").get<int>();
     const auto alpha = odvr::image::LoadImage(dir + "/car_alpha.exr");
     EXPECT_EQ(alpha.width, 64);
     EXPECT_EQ(alpha.height, 36);
-    for (int i = 0; i < 64 * 36; ++i) partial[k - 1] += alpha.rgb[3 * i] > 0.f && alpha.rgb[3 * i] < 1.f;
+    for (int p = 0; p < 64 * 36; ++p) run.partial += alpha.rgb[3 * p] > 0.f && alpha.rgb[3 * p] < 1.f;
   }
-  EXPECT_NEAR(car[1], 4.0 * car[0], 0.05 * 4 * car[0]);
-  EXPECT_EQ(partial[0], 0);
-  EXPECT_GT(partial[1], 20);
+  std::printf("car samples: %d, every sample %d, adaptive %d (%d of %d pixels fully sampled)\n", runs[0].car,
+              runs[1].car, runs[2].car, runs[2].fully, 64 * 36);
+  EXPECT_NEAR(runs[1].car, 4.0 * runs[0].car, 0.05 * 4 * runs[0].car);
+  EXPECT_GT(runs[2].car, runs[0].car);
+  EXPECT_LT(runs[2].car, runs[1].car);
+  EXPECT_EQ(runs[1].fully, 64 * 36);
+  EXPECT_LT(runs[2].fully, 64 * 36);
+  EXPECT_EQ(runs[0].partial, 0);
+  EXPECT_GT(runs[1].partial, 20);
+  EXPECT_GT(runs[2].partial, 20);
 }
 
 TEST(RunRender, ClearErrors) {

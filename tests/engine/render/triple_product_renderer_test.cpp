@@ -140,6 +140,11 @@ TEST(TripleProductRenderer, OptionsAreChecked) {
     bad.supersample = k;
     EXPECT_THROW(bad.Check(), Error) << k;
   }
+  for (double c : {-0.1, 1.5, std::numeric_limits<double>::quiet_NaN()}) {
+    RenderOptions bad;
+    bad.supersample_contrast = c;
+    EXPECT_THROW(bad.Check(), Error) << c;
+  }
 }
 
 // Cycles' default pixel filter: Blackman-Harris over 1.5 output pixels, 1 at the pixel's centre,
@@ -239,17 +244,19 @@ TEST_F(TripleProductRendererGL, GpuMatchesCpuReferenceForEveryLobeMode) {
     }
 }
 
-// RenderOptions::supersample: the GPU renders k² samples per pixel and resolves them
-// (render_resolve.comp). Its output must be the same samples, rendered at k× the size without
-// supersampling, resolved by the CPU reference (detail::ResolveSupersampled); the CPU shading path
-// must agree as the unsupersampled paths do; and the car's silhouette must come out with
-// fractional coverage (point sampling gives 0 or 1) while the covered area stays the same.
+// RenderOptions::supersample with every sample shaded (supersample_contrast 0): the GPU renders
+// k² samples per pixel and resolves them (render_resolve.comp). Its output must be the same
+// samples, rendered at k× the size without supersampling, resolved by the CPU reference
+// (detail::ResolveSupersampled); the CPU shading path must agree as the unsupersampled paths do;
+// and the car's silhouette must come out with fractional coverage (point sampling gives 0 or 1)
+// while the covered area stays the same.
 TEST_F(TripleProductRendererGL, SupersampledIsTheSamplesResolvedWithCyclesPixelFilter) {
   for (int k : {2, 3}) {
     RenderOptions o;
     o.voxel_resolution = 64;
     TripleProductRenderer plain(SphereAndBox(), glm::dmat4(1.0), o);
     o.supersample = k;
+    o.supersample_contrast = 0;
     TripleProductRenderer super(SphereAndBox(), glm::dmat4(1.0), o);
     plain.SetLighting(SunnySky());
     super.SetLighting(SunnySky());
@@ -295,6 +302,73 @@ TEST_F(TripleProductRendererGL, SupersampledIsTheSamplesResolvedWithCyclesPixelF
     EXPECT_GT(edge, 30) << k;
     EXPECT_NEAR(area, point_area, 0.03 * point_area) << k;
     EXPECT_EQ(gpu.counts.car_pixels, samples.counts.car_pixels) << "counts are per shaded sample";
+  }
+}
+
+// Adaptive supersampling (RenderOptions::supersample_contrast > 0, the default): the GPU shades
+// every sample only of the pixels render_flag.comp flags, the sample nearest the centre elsewhere.
+// Its output must be the fully sampled image's samples resolved with its own flags by the CPU
+// reference; its flags must match the CPU path's (detail::FlagPixels); every pixel whose samples
+// differ in coverage must be flagged; it must shade fewer samples than every pixel's and land
+// close to the fully supersampled image.
+TEST_F(TripleProductRendererGL, AdaptiveSupersamplingShadesThePixelsThatNeedIt) {
+  for (int k : {2, 3}) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    TripleProductRenderer plain(SphereAndBox(), glm::dmat4(1.0), o);
+    o.supersample = k;
+    TripleProductRenderer adaptive(SphereAndBox(), glm::dmat4(1.0), o);
+    o.supersample_contrast = 0;
+    TripleProductRenderer every(SphereAndBox(), glm::dmat4(1.0), o);
+    for (auto* r : {&plain, &adaptive, &every}) r->SetLighting(SunnySky());
+    const int w = kW, h = kH;
+    const RenderResult samples = plain.Render(View(k * w, k * h), ShadeDevice::kGpu);
+    const RenderResult gpu = adaptive.Render(View(w, h), ShadeDevice::kGpu);
+    const RenderResult cpu = adaptive.Render(View(w, h), ShadeDevice::kCpu);
+    const RenderResult full = every.Render(View(w, h), ShadeDevice::kGpu);
+    ASSERT_EQ(gpu.sampled_fully.size(), static_cast<std::size_t>(w * h));
+    ASSERT_EQ(cpu.sampled_fully.size(), gpu.sampled_fully.size());
+    RenderResult expected;
+    detail::ResolveSupersampled(samples, k, w, h, &expected, &gpu.sampled_fully);
+    double worst = 0;
+    int flagged = 0, flag_mismatch = 0, mixed_unflagged = 0;
+    for (std::size_t i = 0; i < gpu.car_alpha.size(); ++i) {
+      worst = std::max(worst, double(std::abs(gpu.car_alpha[i] - expected.car_alpha[i])));
+      for (int c = 0; c < 3; ++c) {
+        const double e = expected.car.rgb[3 * i + c];
+        worst = std::max(worst, std::abs(gpu.car.rgb[3 * i + c] - e) / std::max(1e-3, std::abs(e)));
+        worst = std::max(worst, double(std::abs(gpu.shadow.rgb[3 * i + c] - expected.shadow.rgb[3 * i + c])));
+      }
+      flagged += gpu.sampled_fully[i];
+      flag_mismatch += gpu.sampled_fully[i] != cpu.sampled_fully[i];
+      // Coverage differing among the pixel's own samples: an edge, which must be flagged.
+      const int px = static_cast<int>(i) % w, py = static_cast<int>(i) / w;
+      float lo = 1, hi = 0;
+      for (int sy = 0; sy < k; ++sy)
+        for (int sx = 0; sx < k; ++sx) {
+          const float a = samples.car_alpha[static_cast<std::size_t>(py * k + sy) * (k * w) + px * k + sx];
+          lo = std::min(lo, a);
+          hi = std::max(hi, a);
+        }
+      mixed_unflagged += lo != hi && !gpu.sampled_fully[i];
+    }
+    const Diff to_full = Compare(gpu.car, full.car, full.car_alpha);
+    const Diff to_cpu = Compare(gpu.car, cpu.car, gpu.car_alpha);
+    std::printf(
+        "k = %d: %d of %d pixels flagged (%d car samples shaded, %d with every sample); GPU vs the CPU resolve of "
+        "the same samples %.2e; flags differing from the CPU path's %d; against every sample shaded: mean %.4f "
+        "p99 %.4f rel; against the CPU path mean %.4f p99 %.4f\n",
+        k, flagged, w * h, gpu.counts.car_pixels, full.counts.car_pixels, worst, flag_mismatch, to_full.mean_rel,
+        to_full.p99_rel, to_cpu.mean_rel, to_cpu.p99_rel);
+    EXPECT_LT(worst, 1e-5) << k;
+    EXPECT_EQ(gpu.counts.pixels_sampled_fully, flagged) << k;
+    EXPECT_EQ(mixed_unflagged, 0) << k;
+    EXPECT_LE(flag_mismatch, w * h / 100) << k;
+    EXPECT_GT(flagged, 0) << k;
+    EXPECT_LT(gpu.counts.car_pixels, full.counts.car_pixels * 3 / 4) << k;
+    EXPECT_LT(to_full.mean_rel, 0.01) << k;
+    EXPECT_LT(to_cpu.mean_rel, 0.01) << k;
+    EXPECT_LT(to_cpu.p99_rel, 0.05) << k;
   }
 }
 
