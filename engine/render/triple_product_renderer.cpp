@@ -787,6 +787,13 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   const int sw = shaded_camera.width, sh = shaded_camera.height;
   // Adaptive supersampling (RenderOptions::supersample_contrast) in the SG shader only.
   const bool adaptive = k > 1 && options_.supersample_contrast > 0 && !monte_carlo;
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  if (sw > max_size || sh > max_size)
+    throw Error("render supersample", std::to_string(k) + "x" + std::to_string(k) + " samples of " + std::to_string(w) +
+                                          "x" + std::to_string(h) + " make " + std::to_string(sw) + "x" +
+                                          std::to_string(sh) + ", beyond the GPU's textures (" +
+                                          std::to_string(max_size) + ")");
   im.EnsureTargets(sw, sh, w, h);
   const glm::dmat3 camera_from_world = glm::transpose(camera.world_from_camera);
   const double f = camera.focal_px(), sf = shaded_camera.focal_px();
@@ -1009,6 +1016,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         im.flagged_list.SubData(0, 4, &zero);
         fp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        // The count sizes the second pass (a 4-byte read that waits for the flags; an indirect
+        // dispatch would spare a player that wait).
         std::uint32_t listed = 0;
         im.flagged_list.Read(0, 4, &listed);
         const long long list_samples = static_cast<long long>(listed) * (k * k - 1);

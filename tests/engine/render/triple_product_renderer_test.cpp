@@ -19,6 +19,7 @@
 #include <limits>
 
 #include "engine/core/error.h"
+#include "engine/gl/objects.h"
 #include "engine/lighting/sg.h"
 #include "engine/render/triple_product_internal.h"
 #include "engine/sphere/equirect.h"
@@ -302,6 +303,15 @@ TEST_F(TripleProductRendererGL, SupersampledIsTheSamplesResolvedWithCyclesPixelF
     EXPECT_GT(edge, 30) << k;
     EXPECT_NEAR(area, point_area, 0.03 * point_area) << k;
     EXPECT_EQ(gpu.counts.car_pixels, samples.counts.car_pixels) << "counts are per shaded sample";
+    // More samples than the GPU's textures hold: a clear error, not a failed allocation.
+    GLint max_size = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+    try {
+      super.Render(View(max_size / k + 1, 8), ShadeDevice::kGpu);
+      ADD_FAILURE() << "no error for " << max_size / k + 1 << " px wide at k = " << k;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("beyond the GPU's textures"), std::string::npos) << e.what();
+    }
   }
 }
 
