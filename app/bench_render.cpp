@@ -521,8 +521,13 @@ std::string Targets(const std::vector<Row>& rows) {
     if (const Row* best = MostSamples(mc)) {
       mc_best = F(best->mean_rel) + ", " + F(best->shade_ms, 0);
       if (const Row* cheap = CheapestWithin(sg_rows, best->mean_rel)) {
-        sg_match = fmt::format("{}, {} levels, {} cone{}, {}³: {}, {}", cheap->lobes, cheap->levels, cheap->cones,
-                               cheap->cones == 1 ? "" : "s", cheap->voxels, F(cheap->mean_rel), F(cheap->shade_ms, 0));
+        const std::string samples =
+            cheap->supersample == 1 ? ""
+            : cheap->contrast > 0 ? fmt::format(", {}×{} c {}", cheap->supersample, cheap->supersample, cheap->contrast)
+                                  : fmt::format(", {}×{}", cheap->supersample, cheap->supersample);
+        sg_match = fmt::format("{}, {} levels, {} cone{}, {}³{}: {}, {}", cheap->lobes, cheap->levels, cheap->cones,
+                               cheap->cones == 1 ? "" : "s", cheap->voxels, samples, F(cheap->mean_rel),
+                               F(cheap->shade_ms, 0));
         fast_at_mc += best->shade_ms / cheap->shade_ms >= 20;
         speed_at_mc = F(best->shade_ms / cheap->shade_ms, 1) + "×";
       }

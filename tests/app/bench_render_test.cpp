@@ -43,6 +43,8 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
     // A reference whose SG error meets the target and lies below every MC row: a lower bound.
     tsv << "paint\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.08\t0.08\t1.0\t0.9\t-1\t0\t900\t50\t60\n";
     tsv << "paint\tsg\tsplit-axis\t320\t180\t2\t7\t128\t0\t0.25\t0.25\t1.0\t0.8\t-1\t0\t900\t20\t30\n";
+    // Supersampled adaptively at 0.15 in 30 ms: the cheapest SG row at MC's best error (0.2).
+    tsv << "paint\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.15\t0.15\t1.0\t0.9\t-1\t0\t900\t30\t40\t2\t0.1\n";
     tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t4\t0.5\t0.5\t1.0\t0.2\t-1\t0\t900\t100\t110\n";
     tsv << "paint\tmc\texact\t320\t180\t0\t0\t128\t64\t0.2\t0.2\t1.0\t0.5\t-1\t0\t900\t2000\t2010\n";
     // Supersampled 2×2 (a 19th column; the rows above, written before it, are 1×1), every sample
@@ -57,17 +59,17 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
   }
   const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("15 rows"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("16 rows"), std::string::npos) << r.out;
   const std::string md = ReadText(d.dir / "render.md");
   EXPECT_NE(md.find("a test machine"), std::string::npos);
   // car: no SG row reaches MC's best error (0.1 at 16 samples); paint: MC's best is 0.2 at 2000
-  // ms, and the cheapest SG row at or below it is the 5-level one at 50 ms (the 2-level one at
-  // 0.25 is cheaper but less accurate).
+  // ms, and the cheapest SG row at or below it is the supersampled one at 30 ms (the 2-level one
+  // at 0.25 is cheaper but less accurate), named with its samples.
   EXPECT_NE(md.find("| car | 0.200 | no | 0.800 | 0.050 | 100.0 | 400 | 4.0× | 0.100, 800 | – | – |"),
             std::string::npos)
       << md;
   EXPECT_NE(md.find("| paint | 0.080 | yes | 0.900 | – | 50.0 | >2000 | >40.0× | 0.200, 2000 | split-axis, 5 levels, "
-                    "7 cones, 128³: 0.080, 50 | 40.0× |"),
+                    "7 cones, 128³, 2×2 c 0.1: 0.150, 30 | 66.7× |"),
             std::string::npos)
       << md;
   EXPECT_NE(md.find("≤ 10 % on car pixels:** 1 of 2"), std::string::npos) << md;
@@ -81,7 +83,8 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
             std::string::npos)
       << md;
   EXPECT_NE(md.find("contrast 0.1"), std::string::npos) << md;
-  EXPECT_NE(md.find("supersampled:** 0 of 1 references. **≥ 20× faster than MC at equal error** (MC supersampled "
+  EXPECT_NE(md.find("| paint | 0.080, 50 | – | 0.150 | no | 0.900 | 30.0 | – | – | – |"), std::string::npos) << md;
+  EXPECT_NE(md.find("supersampled:** 0 of 2 references. **≥ 20× faster than MC at equal error** (MC supersampled "
                     "alike): 1 of 1"),
             std::string::npos)
       << md;
