@@ -39,6 +39,7 @@ AugmentedOptions SceneOptions(const PlayerOptions& o) {
   a.picker.view_distance_m = o.view_distance_m;
   a.lighting_levels = o.lighting_levels;
   a.voxel_resolution = o.voxels;
+  a.supersample = o.supersample;
   a.vfov_deg = std::clamp(o.view.fov_deg, 30.0, 150.0);
   a.exposure = o.exposure;
   return a;

@@ -41,6 +41,7 @@ LiveSceneOptions SceneOptions(const LivePlayOptions& o) {
   s.stitch_device = o.stitch_device == "gpu" ? capture::StitchDevice::kGpu : capture::StitchDevice::kCpu;
   s.lighting_levels = p.lighting_levels;
   s.voxel_resolution = p.voxels;
+  s.supersample = p.supersample;
   s.vfov_deg = std::clamp(p.view.fov_deg, 30.0, 150.0);
   s.exposure = p.exposure;
   return s;

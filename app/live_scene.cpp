@@ -44,6 +44,8 @@ void LiveSceneOptions::Check() const {
   if (lighting_levels < 1 || lighting_levels > 6) throw UsageError("--levels", "must be 1..6");
   if (voxel_resolution != 64 && voxel_resolution != 128 && voxel_resolution != 256)
     throw UsageError("--voxels", "must be 64, 128 or 256");
+  if (supersample < 1 || supersample > render::kMaxSupersample)
+    throw UsageError("--supersample", "must be 1.." + std::to_string(render::kMaxSupersample));
   if (!(vfov_deg >= 10 && vfov_deg <= 150)) throw UsageError("--fov", "must be 10..150 degrees");
   if (!(exposure > 0)) throw UsageError("--exposure", "must be positive");
   if (lighting_width < 16 || lighting_width % 2) throw UsageError("lighting width", "must be even and at least 16");
@@ -91,6 +93,7 @@ LiveScene::LiveScene(LiveSceneOptions options) : options_(std::move(options)), i
     render::RenderOptions ro;
     ro.lighting_levels = options_.lighting_levels;
     ro.voxel_resolution = options_.voxel_resolution;
+    ro.supersample = options_.supersample;
     im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
     im.car_centre = BoundsCentre(*im.renderer);
   }

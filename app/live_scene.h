@@ -39,6 +39,7 @@ struct LiveSceneOptions {
   int lighting_levels = 4;
   int lighting_width = 256;  // the panorama is area-resampled to this width for the lighting
   int voxel_resolution = 64;
+  int supersample = 1;  // render::RenderOptions::supersample (adaptive, its default contrast)
   double vfov_deg = 90;
   double exposure = 1.0;
   std::chrono::milliseconds first_set_timeout{5000};  // a source that delivers nothing is an error

@@ -27,6 +27,7 @@ struct PlayerOptions {
   std::string drive;           // scripted keys, e.g. "W:2s,A:1s" (headless, tests, demos)
   int lighting_levels = 4;     // HEALPix levels of the car's light
   int voxels = 64;             // visibility grid per side
+  int supersample = 1;         // the car's samples per pixel along each axis (adaptive, 1..4)
   bool panel = false;          // window, augmented: the car panel starts open
   bool trace = false;          // window: a JSON line on stdout when ready and per F12 screenshot
   std::string resize;          // window: WxH to resize to halfway through --quit-after (tests)

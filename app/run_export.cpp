@@ -115,6 +115,9 @@ CommandFn AddExport(CLI::App* sub) {
   sub->add_option("--fps", c->fps, "Frame rate (default: the video's)");
   sub->add_option("--levels", s.lighting_levels, "Car light: HEALPix levels (1..6)")->capture_default_str();
   sub->add_option("--voxels", s.voxel_resolution, "Visibility grid per side (64, 128, 256)")->capture_default_str();
+  sub->add_option("--supersample", s.supersample,
+                  "KxK samples per pixel where a pixel needs them (1..4; K² the car's shading at most)")
+      ->capture_default_str();
   sub->add_option("--fov", s.vfov_deg, "Vertical field of view, degrees")->capture_default_str();
   return [c] { return RunExport(*c); };
 }

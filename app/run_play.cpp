@@ -123,6 +123,9 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_option("--drive", o.drive, "Scripted keys, e.g. \"W:2s,A:1s,-:0.5s\" (W/A/S/D, - none)");
   sub->add_option("--levels", o.lighting_levels, "Car light: HEALPix levels (1..6)")->capture_default_str();
   sub->add_option("--voxels", o.voxels, "Car visibility grid per side (64, 128, 256)")->capture_default_str();
+  sub->add_option("--supersample", o.supersample,
+                  "Car: KxK samples per pixel where a pixel needs them (1..4; K² the car's shading at most)")
+      ->capture_default_str();
   sub->add_flag("--no-car", c->no_car, "Play the demo without its car");
   sub->add_option("--resize", o.resize, "Window: resize to WxH halfway through --quit-after (tests)");
   sub->add_flag("--panel", o.panel, "Window: open the car's material and light panel at the start");

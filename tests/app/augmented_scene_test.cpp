@@ -234,6 +234,54 @@ TEST(AugmentedSceneGL, CarOffThePathIsLitByTheNearestFrames) {
   for (float v : f.image.rgb) ASSERT_TRUE(std::isfinite(v));
 }
 
+// --supersample 2 (RenderOptions::supersample, adaptive): the car's light is the same, its
+// outline and highlights are averaged over the pixel, and more samples than pixels are shaded but
+// fewer than four per pixel. 5 per axis is a usage error.
+TEST(AugmentedSceneGL, SupersampledCarKeepsItsLightAndSoftensItsOutline) {
+  gl::HeadlessContext context;
+  const int w = 192, h = 108;
+  AugmentedView with, without;
+  without.draw_car = false;
+  AugmentedFrame frames[2], background;
+  for (int k = 1; k <= 2; ++k) {
+    auto o = DemoOptions();
+    o.supersample = k;
+    AugmentedScene scene(o);
+    frames[k - 1] = scene.Render(w, h, with, 0.04);
+    if (k == 1) background = scene.Render(w, h, without, 0.04);
+  }
+  double added[2] = {0, 0};
+  int moved = 0, car = 0;
+  for (std::size_t i = 0; i < background.image.rgb.size(); i += 3) {
+    double y[3];
+    for (int j = 0; j < 3; ++j) {
+      const float* c = j < 2 ? &frames[j].image.rgb[i] : &background.image.rgb[i];
+      y[j] = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    }
+    added[0] += y[0] - y[2];
+    added[1] += y[1] - y[2];
+    car += std::abs(y[0] - y[2]) > 0.02 * std::max(y[2], 1e-3);
+    moved += std::abs(y[1] - y[0]) > 0.02 * std::max(y[0], 1e-3);
+  }
+  std::printf(
+      "car samples %d (1x1) and %d (2x2), %d pixels changed by the car, %d moved by supersampling; the "
+      "car's added luminance %.2f and %.2f\n",
+      frames[0].car_pixels, frames[1].car_pixels, car, moved, added[0], added[1]);
+  EXPECT_GT(frames[1].car_pixels, frames[0].car_pixels);
+  EXPECT_LT(frames[1].car_pixels, 4 * frames[0].car_pixels);
+  EXPECT_GT(moved, 0);
+  EXPECT_LT(moved, car);
+  EXPECT_NEAR(added[1], added[0], 0.05 * std::abs(added[0]));
+  auto bad = DemoOptions();
+  bad.supersample = 5;
+  try {
+    AugmentedScene scene(bad);
+    ADD_FAILURE() << "no error for --supersample 5";
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("--supersample"), std::string::npos) << e.what();
+  }
+}
+
 TEST(AugmentedSceneGL, MissingCarModelIsAClearError) {
   gl::HeadlessContext context;
   auto o = DemoOptions();

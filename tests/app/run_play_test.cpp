@@ -33,6 +33,13 @@ TEST(RunPlay, CarWithoutTrajectoryIsAUsageError) {
   EXPECT_NE(r.err.find("--trajectory"), std::string::npos) << r.err;
 }
 
+TEST(RunPlayGL, SupersampleOutOfRangeIsAUsageError) {
+  const auto r = RunOdvr("play --headless --size 32x18 --trajectory " + (kDemo / "trajectory_gt.json").string() +
+                         " --car " + (kDemo / "car.glb").string() + " --supersample 5" + kSmall);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--supersample"), std::string::npos) << r.err;
+}
+
 TEST(RunPlayGL, MissingCarModelIsAClearError) {
   const auto r = RunOdvr("play --headless --size 32x18 --trajectory " + (kDemo / "trajectory_gt.json").string() +
                          " --car /nonexistent/car.glb");
@@ -116,9 +123,10 @@ TEST(RunPlayGL, WindowUnderXvfbShowsTheCar) {
 TEST(RunPlayGL, ExportWritesAClipAtomically) {
   const fs::path dir = TempDir("odvr_export");
   const fs::path out = dir / "clip.mp4";
-  const auto r = RunOdvr("export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
-                         (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
-                         " --path W:0.2s --size 96x54 --out " + out.string() + " --levels 3 --voxels 64");
+  const auto r =
+      RunOdvr("export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
+              (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
+              " --path W:0.2s --size 96x54 --out " + out.string() + " --levels 3 --voxels 64 --supersample 2");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("ETA"), std::string::npos) << r.err;
   cv::VideoCapture clip(out.string());
