@@ -463,10 +463,14 @@ struct TripleProductRenderer::Impl {
     const bool supersampled = w != out_w || h != out_h;
     shaded_car = supersampled ? rgba32(w, h) : gl::Texture(gl::NoCreate);
     shaded_shadow = supersampled ? rgba32(w, h) : gl::Texture(gl::NoCreate);
-    pixel_flags = gl::Buffer();
-    pixel_flags.Allocate(static_cast<std::size_t>(out_w) * out_h * 4);
-    flagged_list = gl::Buffer();
-    flagged_list.Allocate(4 + static_cast<std::size_t>(out_w) * out_h * 4);
+    pixel_flags = gl::Buffer(gl::NoCreate);
+    flagged_list = gl::Buffer(gl::NoCreate);
+    if (supersampled) {
+      pixel_flags = gl::Buffer();
+      pixel_flags.Allocate(static_cast<std::size_t>(out_w) * out_h * 4);
+      flagged_list = gl::Buffer();
+      flagged_list.Allocate(4 + static_cast<std::size_t>(out_w) * out_h * 4);
+    }
     g_depth = gl::Texture::Create2D(GL_DEPTH_COMPONENT32F, w, h);
     framebuffer = gl::Framebuffer();
     framebuffer.AttachColor(g_position, 0).AttachColor(g_normal, 1).AttachColor(g_base, 2).AttachDepth(g_depth);
@@ -877,7 +881,9 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   const std::size_t pixels = static_cast<std::size_t>(w) * h;
   const std::size_t samples = static_cast<std::size_t>(sw) * sh;
   std::vector<detail::PixelCounts> counts;
-  std::vector<float> sample_alpha;  // the car's coverage per shaded sample, for the counts
+  // The car's coverage per shaded sample, for the counts: the output's own when not supersampled.
+  std::vector<float> sample_alpha_storage;
+  const std::vector<float>* sample_alpha = &out.car_alpha;
 
   // Shade.
   t0 = Clock::now();
@@ -990,13 +996,13 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       mp.Use().DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh));
     } else {
       im.cosine_table.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
-      im.flagged_list.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
       sp.Set("uOutWidth", w).Set("uFactor", k).Set("uAdaptivePass", 0);
       if (adaptive) {
         // The samples a pass leaves unshaded must read as empty in the counts and the coverage.
         glClearNamedBufferData(im.counts.id(), GL_RGBA32UI, GL_RGBA_INTEGER, GL_UNSIGNED_INT, nullptr);
         glClearTexImage(im.shaded_car.id(), 0, GL_RGBA, GL_FLOAT, nullptr);
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        im.flagged_list.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
         sp.Set("uSampleStride", k)
             .Set("uSamplePhase", k / 2)
             .Use()
@@ -1048,7 +1054,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       glProgramUniform2i(rp.id(), rp.Uniform("uSize"), w, h);
       glProgramUniform2i(rp.id(), rp.Uniform("uShadedSize"), sw, sh);
       rp.Set("uFactor", k).Set("uAdaptive", adaptive ? 1 : 0);
-      im.pixel_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
+      if (adaptive) im.pixel_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
       glProgramUniform1fv(rp.id(), rp.Uniform("uWeights"), static_cast<GLsizei>(weights.size()), weights.data());
       im.shaded_car.BindImage(0, GL_READ_ONLY);
       im.shaded_shadow.BindImage(1, GL_READ_ONLY);
@@ -1114,10 +1120,9 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     }
     if (k > 1) {
       const std::vector<float> car = rgba(im.shaded_car);
-      sample_alpha.resize(samples);
-      for (std::size_t i = 0; i < samples; ++i) sample_alpha[i] = car[4 * i + 3];
-    } else {
-      sample_alpha = out.car_alpha;
+      sample_alpha_storage.resize(samples);
+      for (std::size_t i = 0; i < samples; ++i) sample_alpha_storage[i] = car[4 * i + 3];
+      sample_alpha = &sample_alpha_storage;
     }
   } else {
     detail::GBuffer g;
@@ -1157,10 +1162,10 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         out.sampled_fully.assign(pixels, 1);
         detail::ResolveSupersampled(shaded, k, w, h, &out);
       }
-      sample_alpha = std::move(shaded.car_alpha);
+      sample_alpha_storage = std::move(shaded.car_alpha);
+      sample_alpha = &sample_alpha_storage;
     } else {
       detail::ShadeReference(in, &out, &counts);
-      sample_alpha = out.car_alpha;
     }
     out.ms.shade = MsSince(t0);
 
@@ -1195,7 +1200,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   for (std::size_t i = 0; i < samples; ++i) {
     c.cones_total += counts[i].cones;
     c.triples_total += counts[i].triples;
-    if (sample_alpha[i] > 0) {
+    if ((*sample_alpha)[i] > 0) {
       ++c.car_pixels;
       lobes += counts[i].lobes;
       cones += counts[i].cones;
