@@ -6,8 +6,8 @@
 // a clamped cosine (diffuse_error) and with SG lobes of λ = 20 and λ = 200 (glossy20_error,
 // glossy200_error), evaluated at the 768 level-3 HEALPix directions:
 //   error = ‖conv(I) − conv(R)‖₂ / ‖conv(I)‖₂.
-// conv(I) is integrated numerically on an area-resampled grid (256×128 for the smooth kernels,
-// 512×256 for λ = 200), but for pixels over 20× the mean (a sun), which are summed at their own
+// conv(I) is integrated numerically on an area-resampled grid (512×256 for the smooth kernels,
+// 1024×512 for λ = 200), but for pixels over 20× the mean (a sun), which are summed at their own
 // directions; conv(R) is exact for the SG kernels (closed-form SG products) and, for
 // the cosine, numerical for broad SGs and, for sharp ones (λ ≥ 300), the lobe's energy times its
 // mean cosine coth λ − 1/λ times the clamped cosine averaged over the lobe (which differs from
