@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
+#include <map>
 #include <memory>
 #include <set>
 #include <sstream>
@@ -162,34 +164,69 @@ std::string Targets(const std::vector<Row>& rows) {
           "SRBFs for what the detector leaves of the frame):\n\n";
     ratio_table("sg+peaks", "least-squares+peaks");
   }
-  // 2. Diffuse <= 1 % from level 2 on; no error grows when a level is added.
-  int diffuse_ok = 0, diffuse_total = 0, growths = 0, sequences = 0;
+  // 2. Diffuse <= 1 % from level 2 on; no error grows when a level is added. The errors are against
+  // the native map, but the transform sees the enlarged frame: a model converging on the frame
+  // converges on the frame's own error (the `input` row), so a rise that stays within it is not
+  // counted as a growth but told apart.
+  struct DiffuseCount {
+    int ok = 0, total = 0, optimum_fitted = 0, optimum_over = 0;
+  };
+  std::map<std::string, DiffuseCount> diffuse;
+  int growths = 0, growths_within_input = 0, sequences = 0;
   for (const auto& m : maps)
-    for (int w : widths)
+    for (int w : widths) {
+      const Row* input = find(m, w, "input", "cpu", 0);
       for (const char* method : {"sg", "sg+peaks"}) {
         const Row* previous = nullptr;
-        bool grew = false;
+        bool grew = false, grew_within_input = false;
         for (int levels = 1; levels <= 6; ++levels) {
           const Row* r = find(m, w, method, "cpu", levels);
           if (!r) continue;
           if (levels >= 3) {
-            ++diffuse_total;
-            diffuse_ok += r->e.diffuse <= 0.01;
+            DiffuseCount& d = diffuse[method];
+            ++d.total;
+            d.ok += r->e.diffuse <= 0.01;
+            const Row* optimum =
+                find(m, w, std::string(method) == "sg" ? "least-squares" : "least-squares+peaks", "cpu", levels);
+            if (r->e.diffuse > 0.01 && optimum) {
+              ++d.optimum_fitted;
+              d.optimum_over += optimum->e.diffuse > 0.01;
+            }
           }
-          if (previous &&
-              (r->e.diffuse > previous->e.diffuse * 1.02 + 1e-5 || r->e.glossy20 > previous->e.glossy20 * 1.02 + 1e-5 ||
-               r->e.glossy200 > previous->e.glossy200 * 1.02 + 1e-5))
-            grew = true;
+          if (previous) {
+            const auto rose = [&](double now, double before, double floor) {
+              if (now <= before * 1.02 + 1e-5) return 0;
+              return now > floor ? 2 : 1;
+            };
+            // Without an input row (an old TSV) every rise counts.
+            const double none = -std::numeric_limits<double>::infinity();
+            const int rise = std::max({rose(r->e.diffuse, previous->e.diffuse, input ? input->e.diffuse : none),
+                                       rose(r->e.glossy20, previous->e.glossy20, input ? input->e.glossy20 : none),
+                                       rose(r->e.glossy200, previous->e.glossy200, input ? input->e.glossy200 : none)});
+            grew |= rise == 2;
+            grew_within_input |= rise == 1;
+          }
           previous = r;
         }
         if (previous) {
           ++sequences;
           growths += grew;
+          growths_within_input += !grew && grew_within_input;
         }
       }
-  md << "**Diffuse error <= 1 % from level 2 on:** " << diffuse_ok << " of " << diffuse_total
-     << " (map, width, method, levels >= 3) rows. **An error grew by more than 2 % when a level was added** in "
-     << growths << " of " << sequences << " level sequences.\n\n";
+    }
+  md << "**Diffuse error <= 1 % from level 2 on** (levels >= 3):";
+  for (const auto& [method, d] : diffuse)
+    md << " `" << method << "` " << d.ok << " of " << d.total << " (map, width, levels) rows"
+       << (d.optimum_fitted > 0 ? fmt::format(", the least-squares optimum on the same basis over 1 % too on {} of "
+                                              "the {} others it was fitted for",
+                                              d.optimum_over, d.optimum_fitted)
+                                : "")
+       << ";";
+  md << " **an error grew by more than 2 % when a level was added** in " << growths << " of " << sequences
+     << " level sequences, and in " << growths_within_input
+     << " more it rose but stayed within the frame's own error against the native map (the `input` row: the "
+        "model converges on the frame it is given).\n\n";
   // 3. Sunny maps: SG with peaks against SH order 8, each from the same frame (TSVs written before
   // SH had a row per width hold one SH row per map, from the native map; it stands in then).
   const auto sh8 = [&](const std::string& map, int width) -> const Row* {
