@@ -194,17 +194,20 @@ std::string Targets(const std::vector<Row>& rows) {
             }
           }
           if (previous) {
-            const auto rose = [&](double now, double before, double floor) {
-              if (now <= before * 1.02 + 1e-5) return 0;
-              return now > floor ? 2 : 1;
-            };
+            // A rise ending within the input row's error is the model converging on the frame.
             // Without an input row (an old TSV) every rise counts.
+            enum Rise { kNone, kWithinInput, kBeyondInput };
+            const auto rise = [&](double now, double before, double input_error) {
+              if (now <= before * 1.02 + 1e-5) return kNone;
+              return now > input_error ? kBeyondInput : kWithinInput;
+            };
             const double none = -std::numeric_limits<double>::infinity();
-            const int rise = std::max({rose(r->e.diffuse, previous->e.diffuse, input ? input->e.diffuse : none),
-                                       rose(r->e.glossy20, previous->e.glossy20, input ? input->e.glossy20 : none),
-                                       rose(r->e.glossy200, previous->e.glossy200, input ? input->e.glossy200 : none)});
-            grew |= rise == 2;
-            grew_within_input |= rise == 1;
+            const Rise worst =
+                std::max({rise(r->e.diffuse, previous->e.diffuse, input ? input->e.diffuse : none),
+                          rise(r->e.glossy20, previous->e.glossy20, input ? input->e.glossy20 : none),
+                          rise(r->e.glossy200, previous->e.glossy200, input ? input->e.glossy200 : none)});
+            grew |= worst == kBeyondInput;
+            grew_within_input |= worst == kWithinInput;
           }
           previous = r;
         }

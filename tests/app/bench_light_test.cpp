@@ -93,8 +93,6 @@ TEST(BenchLight, ReportComparesSgWithPeaksWithTheOptimumOnItsBasis) {
   EXPECT_NE(md.find("Maps with every ratio within 1.5: 1 of 1", with_peaks), std::string::npos) << md;
 }
 
-}  // namespace
-
 // A level that raises an error counts as a growth, unless the raised error stays within the
 // frame's own error against the native map (the `input` row): the model converges on the frame.
 // The diffuse line is per method, beside the optimum's own diffuse error on the failing rows.
@@ -121,3 +119,5 @@ TEST(BenchLight, ReportCountsGrowthsBeyondTheFramesOwnError) {
             std::string::npos)
       << md;
 }
+
+}  // namespace
