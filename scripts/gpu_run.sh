@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# Runs the GL tests and the GPU benches from a bundle made by scripts/gpu_bundle.sh, on a machine
+# with a GPU driver but without our build dependencies, from the repository root. Each step has
+# its own time limit so that a slow one cannot cost the others; everything lands in OUT_DIR,
+# packed into results.tar.gz at the end, with log.txt beside it.
+#   [PARTS_DIR=DIR] scripts/gpu_run.sh BUNDLE_DIR OUT_DIR [quick]
+# quick: small sizes, to check the bundle itself.
+set -uo pipefail
+bundle=$(cd "${1:?bundle directory}" && pwd)
+out=$(mkdir -p "${2:?output directory}" && cd "$2" && pwd)
+quick=${3:-}
+log=$out/log.txt
+root=$PWD
+work=$(mktemp -d)
+results=$work/results
+mkdir -p "$results"
+
+say() { echo "[$(date +%T)] $*" | tee -a "$log"; }
+budget=${BUDGET:-100000}  # seconds: a step that could end past it is skipped
+step() {  # step NAME SECONDS COMMAND...
+  local name=$1 limit=$2
+  shift 2
+  if [ $((SECONDS + limit)) -gt "$budget" ]; then
+    say "== $name skipped: ${limit}s would pass the ${budget}s budget"
+    return
+  fi
+  say "== $name (limit ${limit}s): $*"
+  local t0=$SECONDS
+  timeout --kill-after=5 "$limit" "$@" >"$results/$name.out" 2>"$results/$name.err"
+  local rc=$?
+  say "   $name: rc $rc in $((SECONDS - t0)) s"
+  tail -n 25 "$results/$name.out" "$results/$name.err" >>"$log"
+}
+
+# The parts may have travelled apart: PARTS_DIR holds those that are not in the bundle directory.
+for p in "$bundle"/part*.tar ${PARTS_DIR:+"$PARTS_DIR"/part*.tar}; do tar -C "$work" -xf "$p"; done
+ls "$work"/bin/*.xz "$work"/lib/*.xz | xargs -P "$(nproc)" -n 8 unxz
+bin=$work/bin
+# The programs find the repository and ../shared by the paths they were built with.
+src=$(cat "$bundle/source_dir")
+if [ ! -e "$src" ]; then
+  mkdir -p "$(dirname "$src")" && ln -s "$root" "$src"
+fi
+if [ ! -e "$src/../shared" ]; then ln -s "$bundle/shared" "$src/../shared"; fi
+loader=$(ls "$work"/lib/ld-linux-x86-64.so.* | head -1)
+# Our C library and loader travel with the programs, so the target's own may be older or newer.
+libpath=$work/lib
+# The driver's own libraries (libEGL_nvidia and what it loads), where the target keeps them apart.
+for d in /usr/local/nvidia/lib64 /usr/local/nvidia/lib; do [ -d "$d" ] && libpath=$libpath:$d; done
+for p in odvr engine_tests capture_tests; do
+  printf '#!/bin/sh\nexec %s --library-path %s %s "$@"\n' "$loader" "$libpath" "$bin/$p" >"$work/$p"
+  chmod +x "$work/$p"
+done
+odvr=$work/odvr
+cd "$src"
+
+say "machine: $(nproc) cores; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo 'no nvidia-smi')"
+step info 30 "$odvr" info --json
+if [ "$quick" = quick ]; then
+  step tests_engine 300 "$work/engine_tests" --gtest_filter='ContextGL.*:ComputeGL.*'
+  step bench_light 300 "$odvr" bench light --gpu --widths 1024 --max-levels 3 --no-least-squares --repeats 1 \
+    --min-time-ms 0 --out "$results/light" "$src/../shared/data/env/park.exr"
+  step bench_render 300 "$odvr" bench render --only sky_diffuse --levels 3 --cones 7 \
+    --voxels 64 --mc-samples 4 --no-lobe-modes --no-ground-bounce --out "$results/render"
+else
+  env=$src/../shared/data/env
+  light() { step "light_$1" "$2" "$odvr" bench light --gpu --widths 1024,2048 --max-levels 6 --no-least-squares \
+    --repeats 9 --min-time-ms 200 --out "$results/light_$1" "$env/$1.exr"; }
+  step tests_engine 90 "$work/engine_tests" --gtest_filter='*GL.*:*/*GL.*'
+  step tests_capture 30 "$work/capture_tests" --gtest_filter='*GL.*:*/*GL.*'
+  light park 50
+  light sunset 50
+  step render_hd 40 "$odvr" bench render --only sunset_glossy --levels 5 --cones 7 --voxels 128 --mc-samples 16,256 --no-lobe-modes \
+    --out "$results/render_hd"
+  step player 50 "$odvr" bench player --size 1280x720 --frames 30 --out "$results/player.md"
+  step render 120 "$odvr" bench render --mc-samples 4,16,64,256,1024 --out "$results/render"
+  step player_live 40 "$odvr" bench player --live --frames 30 --out "$results/player_live.md"
+  step stitch 45 "$odvr" bench stitch --gpu --repeats 5 --out "$results/stitch"
+  light sky 50
+  light dawn 50
+fi
+tar -C "$work" -czf "$out/results.tar.gz" results
+say "done"
