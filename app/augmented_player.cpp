@@ -50,6 +50,7 @@ FrameTimings Timings(const AugmentedFrame& f) {
   t.decode_ms = f.ms.decode;
   t.lighting_ms = f.ms.lighting;
   t.render_ms = f.ms.render;
+  t.readback_ms = f.ms.readback;
   t.composite_ms = f.ms.composite;
   t.total_ms = f.ms.total;
   return t;
@@ -76,6 +77,7 @@ void Medians(const std::vector<FrameTimings>& all, PlayerReport* report) {
   report->median.decode_ms = median(&FrameTimings::decode_ms);
   report->median.lighting_ms = median(&FrameTimings::lighting_ms);
   report->median.render_ms = median(&FrameTimings::render_ms);
+  report->median.readback_ms = median(&FrameTimings::readback_ms);
   report->median.composite_ms = median(&FrameTimings::composite_ms);
   report->median.total_ms = median(&FrameTimings::total_ms);
   report->median_total_ms = report->median.total_ms;
@@ -312,6 +314,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
            {{"decode", frame.ms.decode},
             {"lighting", frame.ms.lighting},
             {"render", frame.ms.render},
+            {"readback", frame.ms.readback},
             {"composite", frame.ms.composite},
             {"total", frame.ms.total}}}};
       PrintTrace(j.dump());

@@ -220,6 +220,7 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
   ro.voxel_resolution = options_.voxel_resolution;
   ro.cone_rings = options_.cone_rings;
   ro.supersample = options_.supersample;
+  ro.read_layers = false;  // the player shows the composite alone
   im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
   im.car_centre = BoundsCentre(*im.renderer);
 
@@ -468,7 +469,8 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
   t0 = Clock::now();
   render::RenderResult r = im.renderer->Render(camera, render::ShadeDevice::kGpu, view.draw_car);
   const double wall = MsSince(t0);
-  out.ms.render = std::max(0.0, wall - r.ms.composite);
+  out.ms.readback = r.ms.readback;
+  out.ms.render = std::max(0.0, wall - r.ms.composite - r.ms.readback);
   composite_ms += r.ms.composite;
   out.image = std::move(r.composite);
   out.car_pixels = r.counts.car_pixels;

@@ -67,7 +67,7 @@ struct AugmentedOptions {
 };
 
 struct AugmentedTimings {  // milliseconds of one shown frame
-  double decode = 0, lighting = 0, render = 0, composite = 0, total = 0;
+  double decode = 0, lighting = 0, render = 0, readback = 0, composite = 0, total = 0;
 };
 
 struct AugmentedFrame {

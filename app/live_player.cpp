@@ -69,7 +69,7 @@ LiveTimings Medians(const std::vector<LiveTimings>& all) {
   };
   LiveTimings m;
   for (auto field : {&LiveTimings::capture_wait, &LiveTimings::stitch, &LiveTimings::lighting, &LiveTimings::render,
-                     &LiveTimings::composite, &LiveTimings::total})
+                     &LiveTimings::readback, &LiveTimings::composite, &LiveTimings::total})
     m.*field = median(field);
   return m;
 }
@@ -201,8 +201,8 @@ LiveReport RunLiveWindow(const LivePlayOptions& o) {
 }
 
 nlohmann::json TimingsJson(const LiveTimings& t) {
-  return {{"capture_wait", t.capture_wait}, {"stitch", t.stitch}, {"lighting", t.lighting}, {"render", t.render},
-          {"composite", t.composite},       {"total", t.total}};
+  return {{"capture_wait", t.capture_wait}, {"stitch", t.stitch},       {"lighting", t.lighting}, {"render", t.render},
+          {"readback", t.readback},         {"composite", t.composite}, {"total", t.total}};
 }
 
 }  // namespace

@@ -94,6 +94,7 @@ LiveScene::LiveScene(LiveSceneOptions options) : options_(std::move(options)), i
     ro.lighting_levels = options_.lighting_levels;
     ro.voxel_resolution = options_.voxel_resolution;
     ro.supersample = options_.supersample;
+    ro.read_layers = false;  // the player shows the composite alone
     im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
     im.car_centre = BoundsCentre(*im.renderer);
   }
@@ -249,7 +250,8 @@ LiveFrame LiveScene::Render(int width, int height, const AugmentedView& view) {
     t0 = Clock::now();
     im.renderer->SetBackgroundImage(background);
     render::RenderResult r = im.renderer->Render(camera);
-    out.ms.render = std::max(0.0, MsSince(t0) - r.ms.composite);
+    out.ms.readback = r.ms.readback;
+    out.ms.render = std::max(0.0, MsSince(t0) - r.ms.composite - r.ms.readback);
     composite_ms += r.ms.composite;
     out.image = std::move(r.composite);
     out.car_pixels = r.counts.car_pixels;

@@ -48,7 +48,7 @@ struct LiveSceneOptions {
 };
 
 struct LiveTimings {  // milliseconds of one shown frame
-  double capture_wait = 0, stitch = 0, lighting = 0, render = 0, composite = 0, total = 0;
+  double capture_wait = 0, stitch = 0, lighting = 0, render = 0, readback = 0, composite = 0, total = 0;
 };
 
 struct LiveFrame {

@@ -37,7 +37,7 @@ struct PlayerOptions {
 // Per-stage milliseconds of the last frame (the overlay and --json).
 struct FrameTimings {
   double decode_ms = 0, upload_ms = 0, render_ms = 0, total_ms = 0;
-  double lighting_ms = 0, composite_ms = 0;  // augmented mode
+  double lighting_ms = 0, readback_ms = 0, composite_ms = 0;  // augmented mode
 };
 
 // Augmented mode, per shown frame (for --json and the tests).

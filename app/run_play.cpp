@@ -62,6 +62,7 @@ int RunPlay(PlayCommand& c) {
                       {{"decode", r.median.decode_ms},
                        {"lighting", r.median.lighting_ms},
                        {"render", r.median.render_ms},
+                       {"readback", r.median.readback_ms},
                        {"composite", r.median.composite_ms},
                        {"total", r.median.total_ms}}},
                      {"last_frame_ms",
@@ -69,6 +70,7 @@ int RunPlay(PlayCommand& c) {
                        {"upload", r.last.upload_ms},
                        {"lighting", r.last.lighting_ms},
                        {"render", r.last.render_ms},
+                       {"readback", r.last.readback_ms},
                        {"composite", r.last.composite_ms},
                        {"total", r.last.total_ms}}}};
     nlohmann::json frames = nlohmann::json::array();

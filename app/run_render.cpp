@@ -178,6 +178,7 @@ int RunRender(const RenderCliOptions& o) {
           {"gbuffer", r.ms.gbuffer},
           {"shade", r.ms.shade},
           {"composite", r.ms.composite},
+          {"readback", r.ms.readback},
           {"render_total", r.ms.total},
           {"first_render_total", first.total},
           {"repeat", o.repeat}}},

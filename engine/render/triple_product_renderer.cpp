@@ -280,6 +280,48 @@ void SetConeTraceUniforms(gl::Program& program, const visibility::VoxelGridSpec&
       .Set("uConePartialExponent", static_cast<float>(trace.partial_opacity_exponent));
 }
 
+// The render's counts summed over its shaded samples (RenderCounts before the means).
+struct CountSums {
+  long long car = 0, ground = 0, pixels_sampled_fully = 0;
+  long long lobes = 0, cones = 0, sgs = 0, triples = 0;  // over car samples
+  long long cones_total = 0, triples_total = 0;          // over every sample
+};
+
+constexpr int kCountTotals = 15;  // render_counts.comp's Totals
+
+// RenderOptions::read_layers off: render_counts.comp sums the per-sample counts, the car's coverage
+// taken from `sample_car`'s alpha (the shaded samples' layer), and only the sums come back.
+CountSums SumCountsOnGpu(gl::Program& program, gl::Buffer& counts, gl::Buffer& pixel_flags, gl::Buffer& totals,
+                         gl::Texture& sample_car, int samples_width, int samples_height, int pixels, bool adaptive) {
+  glClearNamedBufferData(totals.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+  counts.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
+  if (adaptive) pixel_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 1);
+  totals.BindBase(GL_SHADER_STORAGE_BUFFER, 2);
+  sample_car.BindImage(0, GL_READ_ONLY);
+  glProgramUniform2i(program.id(), program.Uniform("uSamplesSize"), samples_width, samples_height);
+  program.Set("uPixels", pixels).Set("uHasFlags", adaptive ? 1 : 0);
+  // Enough invocations to fill a GPU, few enough that each sums a stride of samples first.
+  const long long covered = std::max<long long>(static_cast<long long>(samples_width) * samples_height, pixels);
+  program.Use().DispatchCovering(static_cast<unsigned>(std::min<long long>(covered, 256LL * 256)));
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  const std::vector<std::uint32_t> t = totals.Read<std::uint32_t>(kCountTotals);
+  const auto pair = [&](int i) {
+    return static_cast<long long>(t[static_cast<std::size_t>(3 + 2 * i)]) |
+           (static_cast<long long>(t[static_cast<std::size_t>(4 + 2 * i)]) << 32);
+  };
+  CountSums s;
+  s.car = t[0];
+  s.ground = t[1];
+  s.pixels_sampled_fully = t[2];
+  s.lobes = pair(0);
+  s.cones = pair(1);
+  s.sgs = pair(2);
+  s.triples = pair(3);
+  s.cones_total = pair(4);
+  s.triples_total = pair(5);
+  return s;
+}
+
 }  // namespace
 
 // --- camera, overrides, options -----------------------------------------------------------------
@@ -311,9 +353,9 @@ glm::dvec3 PinholeCamera::Ray(double x, double y) const {
 
 void PinholeCamera::Check() const {
   if (!(vfov_deg > 0.1 && vfov_deg < 179)) throw Error("camera fov", "must be in (0.1, 179) degrees");
-  if (width < 1 || height < 1 || width > 16384 || height > 16384)
-    throw Error("camera size",
-                "must be 1..16384 pixels per side, got " + std::to_string(width) + "x" + std::to_string(height));
+  if (width < 1 || height < 1 || width > kMaxSide || height > kMaxSide)
+    throw Error("camera size", "must be 1.." + std::to_string(kMaxSide) + " pixels per side, got " +
+                                   std::to_string(width) + "x" + std::to_string(height));
   for (int i = 0; i < 3; ++i)
     if (!std::isfinite(position[i])) throw Error("camera position", "must be finite");
 }
@@ -415,7 +457,7 @@ struct TripleProductRenderer::Impl {
   int bvh_triangle_count = 0;
 
   gl::Program gbuffer_program{gl::NoCreate}, shade_program{gl::NoCreate}, composite_program{gl::NoCreate},
-      resolve_program{gl::NoCreate}, flag_program{gl::NoCreate};
+      resolve_program{gl::NoCreate}, flag_program{gl::NoCreate}, counts_program{gl::NoCreate};
   int fb_width = 0, fb_height = 0, out_width = 0, out_height = 0;
   gl::Framebuffer framebuffer{gl::NoCreate};
   gl::Texture g_position{gl::NoCreate}, g_normal{gl::NoCreate}, g_base{gl::NoCreate}, g_depth{gl::NoCreate};
@@ -428,6 +470,7 @@ struct TripleProductRenderer::Impl {
   // then the pixels' indices).
   gl::Buffer pixel_flags{gl::NoCreate}, flagged_list{gl::NoCreate};
   gl::Buffer counts{gl::NoCreate};
+  gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's sums
 
   const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb) {
     auto key = std::make_pair(image, srgb);
@@ -497,6 +540,11 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   im.shade_program = gl::ShaderLibrary::Compute("render_shade.comp",
                                                 "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n");
   im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
+  if (!options_.read_layers) {
+    im.counts_program = gl::ShaderLibrary::Compute("render_counts.comp");
+    im.count_totals = gl::Buffer();
+    im.count_totals.Allocate(kCountTotals * sizeof(std::uint32_t));
+  }
   if (options_.supersample > 1) {
     im.resolve_program = gl::ShaderLibrary::Compute("render_resolve.comp");
     im.flag_program = gl::ShaderLibrary::Compute("render_flag.comp");
@@ -881,6 +929,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   const std::size_t pixels = static_cast<std::size_t>(w) * h;
   const std::size_t samples = static_cast<std::size_t>(sw) * sh;
   std::vector<detail::PixelCounts> counts;
+  std::optional<CountSums> gpu_sums;  // RenderOptions::read_layers off
   // The car's coverage per shaded sample, for the counts: the output's own when not supersampled.
   std::vector<float> sample_alpha_storage;
   const std::vector<float>* sample_alpha = &out.car_alpha;
@@ -1094,7 +1143,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     gl::Finish();
     out.ms.composite = MsSince(t0);
 
-    // Read back (not timed as a stage: a player keeps the layers on the GPU).
+    // Read back.
+    t0 = Clock::now();
     const auto rgba = [&](const gl::Texture& t) { return t.Read<float>(GL_RGBA, GL_FLOAT, 4); };
     const auto to_rgb = [&](const std::vector<float>& v, std::vector<float>* alpha) {
       sphere::EquirectImage img(w, h);
@@ -1105,25 +1155,32 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       }
       return img;
     };
-    out.car = to_rgb(rgba(im.car_layer), &out.car_alpha);
-    out.shadow = to_rgb(rgba(im.shadow_layer), &out.ground_mask);
     out.composite = to_rgb(rgba(im.composite_layer), nullptr);
-    out.background = to_rgb(rgba(im.background_layer), nullptr);
-    const auto raw = im.counts.Read<glm::uvec4>(samples);
-    counts.resize(samples);
-    for (std::size_t i = 0; i < samples; ++i) counts[i] = {raw[i].x, raw[i].y, raw[i].z, raw[i].w};
-    if (adaptive) {
-      const auto flags = im.pixel_flags.Read<std::uint32_t>(pixels);
-      out.sampled_fully.assign(flags.begin(), flags.end());
-    } else if (k > 1) {
-      out.sampled_fully.assign(pixels, 1);
+    if (!options_.read_layers) {
+      gpu_sums = SumCountsOnGpu(im.counts_program, im.counts, im.pixel_flags, im.count_totals,
+                                k > 1 ? im.shaded_car : im.car_layer, sw, sh, static_cast<int>(pixels), adaptive);
+      if (k > 1 && !adaptive) gpu_sums->pixels_sampled_fully = static_cast<long long>(pixels);
+    } else {
+      out.car = to_rgb(rgba(im.car_layer), &out.car_alpha);
+      out.shadow = to_rgb(rgba(im.shadow_layer), &out.ground_mask);
+      out.background = to_rgb(rgba(im.background_layer), nullptr);
+      const auto raw = im.counts.Read<glm::uvec4>(samples);
+      counts.resize(samples);
+      for (std::size_t i = 0; i < samples; ++i) counts[i] = {raw[i].x, raw[i].y, raw[i].z, raw[i].w};
+      if (adaptive) {
+        const auto flags = im.pixel_flags.Read<std::uint32_t>(pixels);
+        out.sampled_fully.assign(flags.begin(), flags.end());
+      } else if (k > 1) {
+        out.sampled_fully.assign(pixels, 1);
+      }
+      if (k > 1) {
+        const std::vector<float> car = rgba(im.shaded_car);
+        sample_alpha_storage.resize(samples);
+        for (std::size_t i = 0; i < samples; ++i) sample_alpha_storage[i] = car[4 * i + 3];
+        sample_alpha = &sample_alpha_storage;
+      }
     }
-    if (k > 1) {
-      const std::vector<float> car = rgba(im.shaded_car);
-      sample_alpha_storage.resize(samples);
-      for (std::size_t i = 0; i < samples; ++i) sample_alpha_storage[i] = car[4 * i + 3];
-      sample_alpha = &sample_alpha_storage;
-    }
+    out.ms.readback = MsSince(t0);
   } else {
     detail::GBuffer g;
     g.width = sw;
@@ -1193,29 +1250,38 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   }
 
   // Counts.
+  CountSums sums;
+  if (gpu_sums) {
+    sums = *gpu_sums;
+  } else {
+    for (std::size_t i = 0; i < samples; ++i) {
+      sums.cones_total += counts[i].cones;
+      sums.triples_total += counts[i].triples;
+      if ((*sample_alpha)[i] > 0) {
+        ++sums.car;
+        sums.lobes += counts[i].lobes;
+        sums.cones += counts[i].cones;
+        sums.sgs += counts[i].sgs;
+        sums.triples += counts[i].triples;
+      } else if (counts[i].lobes > 0) {
+        ++sums.ground;
+      }
+    }
+    sums.pixels_sampled_fully = std::count(out.sampled_fully.begin(), out.sampled_fully.end(), 1);
+  }
   RenderCounts& c = out.counts;
   c.lighting_sgs = im.lighting.sg_count;
   c.peaks = static_cast<int>(im.lighting.peaks.size());
-  long long lobes = 0, cones = 0, sgs = 0, triples = 0;
-  for (std::size_t i = 0; i < samples; ++i) {
-    c.cones_total += counts[i].cones;
-    c.triples_total += counts[i].triples;
-    if ((*sample_alpha)[i] > 0) {
-      ++c.car_pixels;
-      lobes += counts[i].lobes;
-      cones += counts[i].cones;
-      sgs += counts[i].sgs;
-      triples += counts[i].triples;
-    } else if (counts[i].lobes > 0) {
-      ++c.ground_pixels;
-    }
-  }
-  c.pixels_sampled_fully = static_cast<int>(std::count(out.sampled_fully.begin(), out.sampled_fully.end(), 1));
+  c.car_pixels = static_cast<int>(sums.car);
+  c.ground_pixels = static_cast<int>(sums.ground);
+  c.pixels_sampled_fully = static_cast<int>(sums.pixels_sampled_fully);
+  c.cones_total = sums.cones_total;
+  c.triples_total = sums.triples_total;
   if (c.car_pixels > 0) {
-    c.lobes_per_car_pixel = static_cast<double>(lobes) / c.car_pixels;
-    c.cones_per_car_pixel = static_cast<double>(cones) / c.car_pixels;
-    c.sgs_per_car_pixel = static_cast<double>(sgs) / c.car_pixels;
-    c.triples_per_car_pixel = static_cast<double>(triples) / c.car_pixels;
+    c.lobes_per_car_pixel = static_cast<double>(sums.lobes) / c.car_pixels;
+    c.cones_per_car_pixel = static_cast<double>(sums.cones) / c.car_pixels;
+    c.sgs_per_car_pixel = static_cast<double>(sums.sgs) / c.car_pixels;
+    c.triples_per_car_pixel = static_cast<double>(sums.triples) / c.car_pixels;
   }
   out.ms.total = MsSince(t_total);
   return out;

@@ -60,6 +60,8 @@ struct GltfScene;
 namespace odvr::render {
 
 struct PinholeCamera {
+  static constexpr int kMaxSide = 16384;  // pixels per side
+
   glm::dvec3 position{0, 1.5, 6};
   glm::dmat3 world_from_camera{1.0};  // columns: camera x (right), y (down), z (forward) in the world
   double vfov_deg = 40;
@@ -157,6 +159,12 @@ struct RenderOptions {
   // every-sample one's within 0.001, for 1.3–2.2× less shading time; the Monte-Carlo baseline
   // always shades every sample.
   double supersample_contrast = 0.05;
+  // What a GPU render reads back. true: every layer (car, shadow, background, composite) and the
+  // counts per shaded sample, summed on the CPU. false: the composite alone and the counts summed
+  // on the GPU (render_counts.comp); RenderResult's other layers stay empty. A player shows only
+  // the composite: the other layers and the per-sample counts are 5× its bytes to bring over a
+  // GPU's bus every frame (RenderTimings::readback says what it cost).
+  bool read_layers = true;
   void Check() const;  // throws odvr::Error naming the field
 };
 
@@ -179,6 +187,7 @@ struct RenderCounts {
 
 struct RenderTimings {  // milliseconds, measured after glFinish
   double voxelize = 0, gbuffer = 0, shade = 0, composite = 0, total = 0;
+  double readback = 0;  // GPU shading: the results to the CPU (RenderOptions::read_layers says which)
 };
 
 struct RenderResult {

@@ -20,6 +20,7 @@
 
 #include "engine/core/error.h"
 #include "engine/gl/objects.h"
+#include "engine/gl/shader_library.h"
 #include "engine/lighting/sg.h"
 #include "engine/render/triple_product_internal.h"
 #include "engine/sphere/equirect.h"
@@ -120,6 +121,25 @@ TEST(TripleProductRenderer, ParsesMaterialOverrides) {
   for (const char* bad : {"", "paint=", "1,2", "0.7,0.6,10", "lambert:1,1", "phong:1,1,1,-1", "foo:1,2,3",
                           "ward:1,1,1,0", "lambert:1,1,x", "lambert:1,1,1+lambert:1,1,1+lambert:1,1,1"})
     EXPECT_THROW(ParseMaterialOverride(bad), UsageError) << bad;
+}
+
+TEST(TripleProductRenderer, CameraSizeBeyondItsLimitIsAClearError) {
+  PinholeCamera camera;
+  camera.width = PinholeCamera::kMaxSide;
+  camera.height = 8;
+  EXPECT_NO_THROW(camera.Check());
+  for (const auto& [w, h] : {std::pair{PinholeCamera::kMaxSide + 1, 8}, std::pair{8, PinholeCamera::kMaxSide + 1},
+                             std::pair{0, 8}, std::pair{8, -1}}) {
+    camera.width = w;
+    camera.height = h;
+    try {
+      camera.Check();
+      ADD_FAILURE() << w << "x" << h << " accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("camera size"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(std::to_string(w) + "x" + std::to_string(h)), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(TripleProductRenderer, OptionsAreChecked) {
@@ -251,6 +271,108 @@ TEST_F(TripleProductRendererGL, GpuMatchesCpuReferenceForEveryLobeMode) {
 // (detail::ResolveSupersampled); the CPU shading path must agree as the unsupersampled paths do;
 // and the car's silhouette must come out with fractional coverage (point sampling gives 0 or 1)
 // while the covered area stays the same.
+// RenderOptions::read_layers off (a player's renders): the composite alone comes back, and the
+// counts summed on the GPU are the CPU's sums of the same samples, for every supersampling mode.
+TEST_F(TripleProductRendererGL, CompositeOnlyReadsBackTheSameImageAndCounts) {
+  struct Mode {
+    int k;
+    double contrast;
+  };
+  for (const Mode mode : {Mode{1, 0.0}, Mode{2, 0.0}, Mode{2, 0.05}}) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.supersample = mode.k;
+    o.supersample_contrast = mode.contrast;
+    TripleProductRenderer every(SphereAndBox(), glm::dmat4(1.0), o);
+    o.read_layers = false;
+    TripleProductRenderer composite_only(SphereAndBox(), glm::dmat4(1.0), o);
+    every.SetLighting(SunnySky());
+    composite_only.SetLighting(SunnySky());
+    const RenderResult a = every.Render(View(), ShadeDevice::kGpu);
+    const RenderResult b = composite_only.Render(View(), ShadeDevice::kGpu);
+    ASSERT_EQ(b.composite.rgb, a.composite.rgb) << mode.k;
+    EXPECT_TRUE(b.car.rgb.empty() && b.car_alpha.empty() && b.shadow.rgb.empty() && b.background.rgb.empty());
+    const RenderCounts &x = a.counts, &y = b.counts;
+    std::printf("k = %d, contrast %.2f: %d car samples, %d ground, %d pixels sampled fully, %lld cones, %lld triples\n",
+                mode.k, mode.contrast, y.car_pixels, y.ground_pixels, y.pixels_sampled_fully, y.cones_total,
+                y.triples_total);
+    EXPECT_GT(y.car_pixels, 100) << mode.k;
+    EXPECT_GT(y.ground_pixels, 10) << mode.k;
+    EXPECT_GT(y.triples_total, 0) << mode.k;
+    EXPECT_EQ(y.car_pixels, x.car_pixels) << mode.k;
+    EXPECT_EQ(y.ground_pixels, x.ground_pixels) << mode.k;
+    EXPECT_EQ(y.pixels_sampled_fully, x.pixels_sampled_fully) << mode.k;
+    EXPECT_EQ(y.cones_total, x.cones_total) << mode.k;
+    EXPECT_EQ(y.triples_total, x.triples_total) << mode.k;
+    EXPECT_EQ(y.lighting_sgs, x.lighting_sgs);
+    EXPECT_EQ(y.peaks, x.peaks);
+    // Means of integer sums over the same count: equal to the last bit.
+    EXPECT_EQ(y.lobes_per_car_pixel, x.lobes_per_car_pixel) << mode.k;
+    EXPECT_EQ(y.cones_per_car_pixel, x.cones_per_car_pixel) << mode.k;
+    EXPECT_EQ(y.sgs_per_car_pixel, x.sgs_per_car_pixel) << mode.k;
+    EXPECT_EQ(y.triples_per_car_pixel, x.triples_per_car_pixel) << mode.k;
+  }
+}
+
+// render_counts.comp's 64-bit sums: a frame's triples can pass 2³² (1280×720 samples × a few
+// thousand each), so the low words must carry into the high ones, across work groups too.
+TEST_F(TripleProductRendererGL, CountSumsCarryPast32Bits) {
+  const int w = 300, h = 2, n = w * h;  // three work groups, the last one partly used
+  std::vector<glm::uvec4> counts(static_cast<std::size_t>(n));
+  std::vector<float> car(4 * static_cast<std::size_t>(n), 0.f);
+  unsigned long long lobes = 0, cones = 0, triples = 0, sgs = 0, cones_all = 0, triples_all = 0;
+  long long car_samples = 0, ground_samples = 0;
+  for (int i = 0; i < n; ++i) {
+    const glm::uvec4 c(i % 3 == 0 ? 0u : 1u + i % 5, 0xF0000000u - 7u * i, 0xFFFFFFFFu - i, 3000000000u + i);
+    counts[static_cast<std::size_t>(i)] = c;
+    const bool on_car = i % 2 == 0;
+    car[4 * static_cast<std::size_t>(i) + 3] = on_car ? 1.f : 0.f;
+    cones_all += c.y;
+    triples_all += c.z;
+    if (on_car) {
+      ++car_samples;
+      lobes += c.x;
+      cones += c.y;
+      triples += c.z;
+      sgs += c.w;
+    } else if (c.x > 0) {
+      ++ground_samples;
+    }
+  }
+  gl::Program program = gl::ShaderLibrary::Compute("render_counts.comp");
+  gl::Buffer count_buffer, totals, flags;
+  count_buffer.Allocate(counts.size() * sizeof(glm::uvec4), counts.data());
+  const std::vector<std::uint32_t> flag_values(static_cast<std::size_t>(n), 1u);
+  flags.Allocate(flag_values.size() * 4, flag_values.data());
+  totals.Allocate(15 * 4);
+  glClearNamedBufferData(totals.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+  gl::Texture image = gl::Texture::Create2D(GL_RGBA32F, w, h);
+  image.Upload2D(GL_RGBA, GL_FLOAT, car.data());
+  count_buffer.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
+  flags.BindBase(GL_SHADER_STORAGE_BUFFER, 1);
+  totals.BindBase(GL_SHADER_STORAGE_BUFFER, 2);
+  image.BindImage(0, GL_READ_ONLY);
+  glProgramUniform2i(program.id(), program.Uniform("uSamplesSize"), w, h);
+  program.Set("uPixels", n - 5).Set("uHasFlags", 1);
+  program.Use().DispatchCovering(static_cast<unsigned>(n));
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  const std::vector<std::uint32_t> t = totals.Read<std::uint32_t>(15);
+  const auto pair = [&](int i) {
+    return static_cast<unsigned long long>(t[static_cast<std::size_t>(3 + 2 * i)]) |
+           (static_cast<unsigned long long>(t[static_cast<std::size_t>(4 + 2 * i)]) << 32);
+  };
+  EXPECT_EQ(t[0], static_cast<std::uint32_t>(car_samples));
+  EXPECT_EQ(t[1], static_cast<std::uint32_t>(ground_samples));
+  EXPECT_EQ(t[2], static_cast<std::uint32_t>(n - 5));
+  EXPECT_EQ(pair(0), lobes);
+  EXPECT_EQ(pair(1), cones);
+  EXPECT_EQ(pair(2), sgs);
+  EXPECT_EQ(pair(3), triples);
+  EXPECT_EQ(pair(4), cones_all);
+  EXPECT_EQ(pair(5), triples_all);
+  EXPECT_GT(triples_all, 100ull << 32);  // the case is one that carries
+}
+
 TEST_F(TripleProductRendererGL, SupersampledIsTheSamplesResolvedWithCyclesPixelFilter) {
   for (int k : {2, 3}) {
     RenderOptions o;
@@ -303,9 +425,12 @@ TEST_F(TripleProductRendererGL, SupersampledIsTheSamplesResolvedWithCyclesPixelF
     EXPECT_GT(edge, 30) << k;
     EXPECT_NEAR(area, point_area, 0.03 * point_area) << k;
     EXPECT_EQ(gpu.counts.car_pixels, samples.counts.car_pixels) << "counts are per shaded sample";
-    // More samples than the GPU's textures hold: a clear error, not a failed allocation.
+    // More samples than the GPU's textures hold: a clear error, not a failed allocation. Where
+    // the camera's own limit comes first (an NVIDIA H200's textures are 32768 wide: k = 2 never
+    // gets there), that limit is the clear error, tested by HardCaseCameraSize... below.
     GLint max_size = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+    if (max_size / k + 1 > PinholeCamera::kMaxSide) continue;
     try {
       super.Render(View(max_size / k + 1, 8), ShadeDevice::kGpu);
       ADD_FAILURE() << "no error for " << max_size / k + 1 << " px wide at k = " << k;
