@@ -778,6 +778,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     }
   }
   report.prepare_ms = MsSince(start);
+  report.input_width = input_w;
+  report.input_height = input_h;
 
   const sphere::EquirectImage& finest = grids.back();
   report.mean_radiance = MeanAbsOf(SphereAbsAndSquareSums(finest, pool_.get()));

@@ -126,8 +126,9 @@ struct LevelReport {
 struct TransformReport {
   std::vector<LevelReport> levels;
   double mean_radiance = 0;
-  double prepare_ms = 0;     // resampling the input to the working grids
-  double correction_ms = 0;  // the coarser levels' refit (coarse_correction)
+  int input_width = 0, input_height = 0;  // the image the transform was given
+  double prepare_ms = 0;                  // resampling the input to the working grids
+  double correction_ms = 0;               // the coarser levels' refit (coarse_correction)
   double total_ms = 0;
   std::string stop_reason;
   std::string device = "cpu";

@@ -320,6 +320,8 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   if (counters[0] || counters[1])
     spdlog::warn("lighting input: clamped {} NaN/Inf and {} negative pixels to 0", counters[0], counters[1]);
   report.prepare_ms = MsSince(start);
+  report.input_width = input_width;
+  report.input_height = input_height;
 
   report.mean_radiance = frame_sums.MeanAbs();
   if (!(report.mean_radiance > 0)) {

@@ -125,6 +125,32 @@ TEST_F(ResidualTransformGpuGL, BuilderStartingFromTheDetectorsCoarseGridMatchesC
   }
 }
 
+TEST_F(ResidualTransformGpuGL, BuilderWithoutPeaksHandsTheGpuTheFinestGridAndMatchesCpu) {
+  // Without peaks the builder area-resamples a frame wider than the peak grid straight to the
+  // transform's finest grid for the GPU (the CPU path takes the frame whole): the same model.
+  auto frame = SunnySky(2048, 1024);
+  for (int levels : {3, 5}) {
+    SCOPED_TRACE(levels);
+    LightingOptions o;
+    o.detect_peaks = false;
+    o.transform.levels = levels;
+    o.transform.stop_threshold = 0;
+    LightingBuilder cpu(o), builder(o);
+    ASSERT_GT(builder.FusedFactor(o.peak_grid_width, o.peak_grid_width / 2), 1);
+    ResidualTransformGpu gpu(o.transform);
+    LightingReport cpu_report, gpu_report;
+    const SgLighting cpu_model = cpu.Build(frame, &cpu_report);
+    const SgLighting gpu_model = builder.Build(frame, &gpu_report, &gpu);
+    ASSERT_EQ(gpu_report.transform.levels.size(), static_cast<std::size_t>(levels));
+    // The GPU was given the transform's finest grid (at least 64 wide), not the frame or the
+    // 1024-wide peak grid; the CPU the frame whole.
+    EXPECT_EQ(gpu_report.transform.input_width, std::max(64, 32 << (levels - 1)));
+    EXPECT_EQ(gpu_report.transform.input_height, gpu_report.transform.input_width / 2);
+    EXPECT_EQ(cpu_report.transform.input_width, 2048);
+    ExpectSameTransform(cpu_model, cpu_report.transform, gpu_model, gpu_report.transform);
+  }
+}
+
 TEST_F(ResidualTransformGpuGL, AllLevelsAndOneSweepMatchCpu) {
   // No stop rule and no keep rule: every level of both paths, amplitudes compared one by one,
   // and the seed's single pass per level.
