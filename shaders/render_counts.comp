@@ -1,8 +1,9 @@
 #version 450
 // RenderOptions::read_layers off: the render's counts (RenderCounts) summed on the GPU, so that a
 // player reads back 15 numbers instead of 16 bytes per shaded sample and the car's coverage
-// (triple_product_renderer.cpp sums the same on the CPU when the layers come back). Each work
-// group sums its samples in shared memory; 64-bit totals are kept as (low, high) pairs of uints.
+// (triple_product_renderer.cpp sums the same on the CPU when the layers come back). Each
+// invocation sums a stride of samples, each work group its invocations' sums in shared memory;
+// 64-bit totals are kept as (low, high) pairs of uints.
 layout(local_size_x = 256) in;
 
 layout(std430, binding = 0) readonly buffer Counts { uvec4 counts[]; };  // lobes, cones, triples, SGs

@@ -663,6 +663,21 @@ std::pair<int, int> WorkingGrid(const ResidualTransformOptions& options, int lev
   return {w, h};
 }
 
+void ResampleToGrid(const sphere::EquirectImage& input, sphere::EquirectImage* target, ThreadPool* pool) {
+  const int box = input.width / target->width;
+  if (box > 1 && input.width == box * target->width && input.height == box * target->height &&
+      DownsampleBoxIfClean(input, box, target, pool))
+    return;
+  if (!HasBadPixels(input.rgb.data(), input.rgb.size())) {
+    sphere::ResampleArea(input, target, pool);
+    return;
+  }
+  sphere::EquirectImage clean = input;
+  const auto [bad, negative] = image::SanitizePixels(&clean);
+  spdlog::warn("lighting input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
+  sphere::ResampleArea(clean, target, pool);
+}
+
 std::pair<int, int> ResidualTransform::GridOf(int level, int input_width, int input_height) const {
   return WorkingGrid(options_, level, input_width, input_height);
 }
@@ -743,27 +758,14 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
   // `input` may be `*owned`, whose storage is swapped for a grid below: its size, kept here.
   const int input_w = input.width, input_h = input.height;
   const auto [finest_w, finest_h] = GridOf(levels - 1, input_w, input_h);
-  const int box = input.width / finest_w;
-  const bool boxed = box > 1 && input.width == box * finest_w && input.height == box * finest_h &&
-                     DownsampleBoxIfClean(input, box, &grids.back(), pool_.get());
-  if (!boxed) {
-    sphere::EquirectImage clean;
-    const sphere::EquirectImage* source = &input;
-    const bool dirty = HasBadPixels(input.rgb.data(), input.rgb.size());
-    if (dirty) {
-      clean = input;
-      const auto [bad, negative] = image::SanitizePixels(&clean);
-      spdlog::warn("lighting input: clamped {} NaN/Inf and {} negative pixels to 0", bad, negative);
-      source = &clean;
-    }
-    // The builder hands over the detector's grid, already the finest: taken, not copied (the
-    // caller gets the previous frame's storage back, to fill next time).
-    if (!dirty && owned && input.width == finest_w && input.height == finest_h) {
-      std::swap(grids.back(), *owned);
-    } else {
-      grids.back().Reshape(finest_w, finest_h);
-      sphere::ResampleArea(*source, &grids.back(), pool_.get());
-    }
+  // The builder hands over the detector's grid, already the finest: taken, not copied (the
+  // caller gets the previous frame's storage back, to fill next time).
+  if (owned && input.width == finest_w && input.height == finest_h &&
+      !HasBadPixels(input.rgb.data(), input.rgb.size())) {
+    std::swap(grids.back(), *owned);
+  } else {
+    grids.back().Reshape(finest_w, finest_h);
+    ResampleToGrid(input, &grids.back(), pool_.get());
   }
   for (int s = levels - 2; s >= 0; --s) {
     const auto [w, h] = GridOf(s, input_w, input_h);

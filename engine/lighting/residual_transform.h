@@ -213,6 +213,12 @@ class ResidualTransform {
 void CheckTransformInput(int width, int height);
 // Working grid of level s: base_width·2^s wide (at least 64), capped at the input's width, the input's aspect.
 std::pair<int, int> WorkingGrid(const ResidualTransformOptions& options, int level, int input_width, int input_height);
+
+// `input` area-resampled to `target`'s size on `pool`, as the transform makes its finest grid:
+// box means in row bands where the size divides evenly and no pixel is bad; otherwise NaN, Inf
+// and negative values clamped to 0 first (with a warning), so that a bad pixel stays one pixel
+// instead of a block of NaN or a mean of both signs.
+void ResampleToGrid(const sphere::EquirectImage& input, sphere::EquirectImage* target, ThreadPool* pool);
 // A level is kept only when it keeps an SRBF and lowers the residue's energy (RMS): eq. 4.17 is
 // a local least-squares estimate, so a level that does not is fitting nothing the frame has.
 inline bool LevelReducesResidue(double rms_before, double rms_after, int kept) {

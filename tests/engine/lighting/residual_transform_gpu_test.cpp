@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -127,8 +129,12 @@ TEST_F(ResidualTransformGpuGL, BuilderStartingFromTheDetectorsCoarseGridMatchesC
 
 TEST_F(ResidualTransformGpuGL, BuilderWithoutPeaksHandsTheGpuTheFinestGridAndMatchesCpu) {
   // Without peaks the builder area-resamples a frame wider than the peak grid straight to the
-  // transform's finest grid for the GPU (the CPU path takes the frame whole): the same model.
+  // transform's finest grid for the GPU (the CPU path takes the frame whole): the same model,
+  // bad pixels clamped before they are averaged as the CPU does (not a NaN spread over a block).
   auto frame = SunnySky(2048, 1024);
+  frame.rgb[3 * (300 * 2048 + 700)] = std::numeric_limits<float>::quiet_NaN();
+  frame.rgb[3 * (301 * 2048 + 701) + 1] = -50.f;
+  frame.rgb[3 * (900 * 2048 + 5) + 2] = std::numeric_limits<float>::infinity();
   for (int levels : {3, 5}) {
     SCOPED_TRACE(levels);
     LightingOptions o;
