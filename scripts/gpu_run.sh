@@ -3,8 +3,8 @@
 # with a GPU driver but without our build dependencies, from the repository root. Each step has
 # its own time limit so that a slow one cannot cost the others; everything lands in OUT_DIR,
 # packed into results.tar.gz at the end, with log.txt beside it.
-#   [PARTS_DIR=DIR] scripts/gpu_run.sh BUNDLE_DIR OUT_DIR [quick]
-# quick: small sizes, to check the bundle itself.
+#   [PARTS_DIR=DIR] scripts/gpu_run.sh BUNDLE_DIR OUT_DIR [quick|stages]
+# quick: small sizes, to check the bundle itself; stages: per-stage timings of lighting and render.
 set -uo pipefail
 bundle=$(cd "${1:?bundle directory}" && pwd)
 out=$(mkdir -p "${2:?output directory}" && cd "$2" && pwd)
@@ -56,14 +56,30 @@ cd "$src"
 
 say "machine: $(nproc) cores; $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo 'no nvidia-smi')"
 step info 30 "$odvr" info --json
-if [ "$quick" = quick ]; then
+env=$src/../shared/data/env
+if [ "$quick" = stages ]; then
+  # Where the time goes, stage by stage, before whole benches: the lighting transform's levels
+  # (cold, then warm), and 1280x720 renders' voxelize, G-buffer, shade, composite and read-back.
+  for run in cold warm; do
+    step "light_levels_$run" 30 "$odvr" light "$env/sunset.exr" --device gpu --json
+  done
+  step light_levels_nopeaks 30 "$odvr" light "$env/sunset.exr" --device gpu --no-peaks --json
+  render() { step "render_$1" 60 "$odvr" render --model "$src/media/demo/car.glb" --env "$env/sky.exr" \
+    --repeat 10 --out "$results/render_$1.png" --json "${@:2}"; }
+  render 720p --size 1280x720
+  render 720p_v64_l4 --size 1280x720 --voxels 64 --levels 4
+  render 720p_l1 --size 1280x720 --voxels 64 --levels 1
+  render 320 --size 320x180
+  step player 60 "$odvr" bench player --size 1280x720 --frames 30 --out "$results/player.md"
+  step light_park 60 "$odvr" bench light --gpu --widths 2048 --max-levels 5 --no-least-squares \
+    --repeats 9 --min-time-ms 200 --out "$results/light_park" "$env/park.exr"
+elif [ "$quick" = quick ]; then
   step tests_engine 300 "$work/engine_tests" --gtest_filter='ContextGL.*:ComputeGL.*'
   step bench_light 300 "$odvr" bench light --gpu --widths 1024 --max-levels 3 --no-least-squares --repeats 1 \
     --min-time-ms 0 --out "$results/light" "$src/../shared/data/env/park.exr"
   step bench_render 300 "$odvr" bench render --only sky_diffuse --levels 3 --cones 7 \
     --voxels 64 --mc-samples 4 --no-lobe-modes --no-ground-bounce --out "$results/render"
 else
-  env=$src/../shared/data/env
   # On the H200 one map took ~35 s per width; a cold driver compiled the GL tests' shaders for
   # over 90 s (the second run took 12 s).
   light() { step "light_$1" "$2" "$odvr" bench light --gpu --widths 2048 --max-levels 6 --no-least-squares \
