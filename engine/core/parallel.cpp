@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
+#include <string>
+
+#include "engine/core/error.h"
 
 namespace odvr {
 
@@ -35,8 +39,20 @@ bool SpinUntil(Done done) {
 
 }  // namespace
 
+int DefaultThreadCount() {
+  // ODVR_THREADS: another machine's thread count here (a 16-core GPU host's on a 2-core one),
+  // or fewer threads beside other work.
+  if (const char* env = std::getenv("ODVR_THREADS")) {
+    char* end = nullptr;
+    const long n = std::strtol(env, &end, 10);
+    if (end != env && *end == '\0' && n >= 1 && n <= 1024) return static_cast<int>(n);
+    throw Error("ODVR_THREADS", "must be a whole number from 1 to 1024, not '" + std::string(env) + "'");
+  }
+  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
 ThreadPool::ThreadPool(int threads) {
-  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (threads <= 0) threads = DefaultThreadCount();
   for (int i = 1; i < threads; ++i) workers_.emplace_back([this] { WorkerLoop(); });
 }
 

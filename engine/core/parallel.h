@@ -11,9 +11,12 @@
 
 namespace odvr {
 
+// The hardware's thread count, or ODVR_THREADS when set (odvr::Error when it is not 1..1024).
+int DefaultThreadCount();
+
 class ThreadPool {
  public:
-  explicit ThreadPool(int threads = 0);  // 0 = hardware concurrency
+  explicit ThreadPool(int threads = 0);  // 0 = DefaultThreadCount()
   ~ThreadPool();
   ThreadPool(const ThreadPool&) = delete;
   ThreadPool& operator=(const ThreadPool&) = delete;
