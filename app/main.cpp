@@ -1,3 +1,9 @@
 #include "app/commands.h"
+#include "app/crash_report.h"
 
-int main(int argc, char** argv) { return odvr::app::Main(argc, argv); }
+int main(int argc, char** argv) {
+#ifndef __SANITIZE_ADDRESS__  // the sanitizer's own report says more
+  odvr::app::InstallCrashReport();
+#endif
+  return odvr::app::Main(argc, argv);
+}
