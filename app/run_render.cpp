@@ -2,6 +2,7 @@
 // on the ground, composited over the frame seen from a pinhole camera.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -36,6 +37,7 @@ struct RenderCliOptions {
   bool no_peaks = false;
   std::string device = "gpu";
   bool json = false;
+  bool composite_only = false;
   int repeat = 1;
 };
 
@@ -77,6 +79,9 @@ int RunRender(const RenderCliOptions& o) {
   options.supersample = o.supersample;
   options.supersample_contrast = o.supersample_contrast;
   options.peak_cones = !o.no_peaks;
+  options.read_layers = !o.composite_only;
+  if (o.composite_only && !o.layers.empty())
+    throw UsageError("--composite-only", "reads back the composite alone: it cannot write --layers");
   for (const auto& m : o.materials) options.materials.push_back(render::ParseMaterialOverride(m));
   options.Check();
   glm::dmat4 world_from_model(1.0);
@@ -150,7 +155,19 @@ int RunRender(const RenderCliOptions& o) {
   // Repeats time the steady state: on llvmpipe the first dispatch also compiles the shaders.
   render::RenderResult r = renderer.Render(camera, device);
   const render::RenderTimings first = r.ms;
-  for (int i = 1; i < o.repeat; ++i) r = renderer.Render(camera, device);
+  std::vector<render::RenderTimings> steady;
+  for (int i = 1; i < o.repeat; ++i) {
+    r = renderer.Render(camera, device);
+    steady.push_back(r.ms);
+  }
+  // Per stage, the median of the repeats after the first (the first alone when there are none).
+  const auto median = [&](double render::RenderTimings::*stage) {
+    if (steady.empty()) return first.*stage;
+    std::vector<double> v;
+    for (const auto& t : steady) v.push_back(t.*stage);
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
   image::SaveImage(o.out, r.composite);
   if (!o.layers.empty()) {
     std::filesystem::create_directories(o.layers);
@@ -174,12 +191,12 @@ int RunRender(const RenderCliOptions& o) {
          {{"position", {camera.position.x, camera.position.y, camera.position.z}}, {"vfov_deg", camera.vfov_deg}}},
         {"ms",
          {{"lighting", lighting_ms},
-          {"voxelize", r.ms.voxelize},
-          {"gbuffer", r.ms.gbuffer},
-          {"shade", r.ms.shade},
-          {"composite", r.ms.composite},
-          {"readback", r.ms.readback},
-          {"render_total", r.ms.total},
+          {"voxelize", median(&render::RenderTimings::voxelize)},
+          {"gbuffer", median(&render::RenderTimings::gbuffer)},
+          {"shade", median(&render::RenderTimings::shade)},
+          {"composite", median(&render::RenderTimings::composite)},
+          {"readback", median(&render::RenderTimings::readback)},
+          {"render_total", median(&render::RenderTimings::total)},
           {"first_render_total", first.total},
           {"repeat", o.repeat}}},
         {"counts",
@@ -259,7 +276,10 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");
-  sub->add_option("--repeat", o->repeat, "Render this many times; ms are the last render's (steady state)")
+  sub->add_flag("--composite-only", o->composite_only,
+                "Read back the composite alone, the counts summed on the GPU (as the players do)");
+  sub->add_option("--repeat", o->repeat,
+                  "Render this many times; ms are each stage's median over the renders after the first")
       ->check(CLI::Range(1, 1000));
   sub->add_flag("--json", o->json, "Print one JSON object: per-stage ms and the counts");
   return [o] { return RunRender(*o); };

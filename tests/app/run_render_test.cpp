@@ -58,6 +58,32 @@ TEST(RunRender, JsonReportLayersAndOutput) {
   EXPECT_EQ(alpha.at(48, 30)[0], 1.f);
 }
 
+// --composite-only (the players' read-back): the same image and counts as a full read-back, with
+// the read-back timed; --layers with it is a usage error.
+TEST(RunRender, CompositeOnlyGivesTheSameImageAndCounts) {
+  if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
+  ScratchDir d("run_render_composite");
+  nlohmann::json j[2];
+  odvr::sphere::EquirectImage img[2];
+  for (int k = 0; k < 2; ++k) {
+    const std::string out = (d.dir / (std::to_string(k) + ".exr")).string();
+    const CliRun r = RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 --json --repeat 3 --out " + out +
+                             (k ? " --composite-only" : ""));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    j[k] = nlohmann::json::parse(r.out);
+    img[k] = odvr::image::LoadImage(out);
+  }
+  EXPECT_EQ(img[0].rgb, img[1].rgb);
+  for (const char* count : {"car_pixels", "ground_pixels_occluded", "cones_total", "triples_total"})
+    EXPECT_EQ(j[0].at("counts").at(count), j[1].at("counts").at(count)) << count;
+  EXPECT_GT(j[1].at("counts").at("car_pixels").get<int>(), 100);
+  EXPECT_GT(j[1].at("ms").at("readback").get<double>(), 0);
+  const CliRun bad = RunOdvr("render " + kArgs + " --size 64x36 --composite-only --out " + (d.dir / "x.png").string() +
+                             " --layers " + (d.dir / "layers").string());
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--composite-only"), std::string::npos) << bad.err;
+}
+
 TEST(RunRender, CpuAndGpuAgree) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_dev");
