@@ -215,15 +215,16 @@ void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
     float beta = min(cap / float(2 * CONE_RINGS + 1), uMaxConeHalfAngle);
     vec3 helper = abs(axis.z) < 0.9 ? vec3(0, 0, 1) : vec3(1, 0, 0);
     vec3 e1 = normalize(cross(helper, axis)), e2 = cross(axis, e1);
-    set.count = 0;
-    set.axis[set.count++] = axis;
+    // Ring r's cones start at 1 + 3r(r − 1): indices the compiler knows once the loops unroll,
+    // where a running count made the array dynamically indexed (local memory on a GPU).
+    set.count = kMaxCones;
+    set.axis[0] = axis;
     for (int r = 1; r <= CONE_RINGS; ++r) {
       float theta = min(2.0 * float(r) * beta, kSgPi);
-      int count = 6 * r;
-      float phase = (r % 2 == 0) ? kSgPi / float(count) : 0.0;
-      for (int k = 0; k < count; ++k) {
-        float phi = phase + kTwoPi * float(k) / float(count);
-        set.axis[set.count++] = normalize(cos(theta) * axis + sin(theta) * (cos(phi) * e1 + sin(phi) * e2));
+      float phase = (r % 2 == 0) ? kSgPi / float(6 * r) : 0.0;
+      for (int k = 0; k < 6 * r; ++k) {
+        float phi = phase + kTwoPi * float(k) / float(6 * r);
+        set.axis[1 + 3 * r * (r - 1) + k] = normalize(cos(theta) * axis + sin(theta) * (cos(phi) * e1 + sin(phi) * e2));
       }
     }
     set.lambda = lambdaForHalfValueAngle(beta);
