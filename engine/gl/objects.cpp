@@ -115,6 +115,48 @@ void Texture::ReadInto(GLenum format, GLenum type, int level, std::size_t bytes,
   glGetTextureImage(id_, level, format, type, static_cast<GLsizei>(bytes), out);
 }
 
+void ReadbackBuffer::Reserve(std::size_t bytes) {
+  if (buffer_ && capacity_ >= bytes) return;
+  buffer_ = Buffer(NoCreate);  // unmapped by its deletion
+  mapped_ = nullptr;
+  capacity_ = std::max<std::size_t>(bytes, 4096);
+  GLuint id = 0;
+  glCreateBuffers(1, &id);
+  buffer_ = Buffer::wrap(id);
+  const GLbitfield flags = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+  glNamedBufferStorage(id, static_cast<GLsizeiptr>(capacity_), nullptr, flags | GL_CLIENT_STORAGE_BIT);
+  mapped_ = static_cast<const std::byte*>(glMapNamedBufferRange(id, 0, static_cast<GLsizeiptr>(capacity_), flags));
+  if (!mapped_) throw Error("read-back buffer", "cannot map " + std::to_string(capacity_) + " bytes");
+}
+
+const std::byte* ReadbackBuffer::Wait() {
+  // Coherent mapping: once the fence has passed, the copy is visible to the CPU.
+  GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  const GLenum status = glClientWaitSync(fence, GL_SYNC_FLUSH_COMMANDS_BIT, 60'000'000'000ull);
+  glDeleteSync(fence);
+  if (status != GL_ALREADY_SIGNALED && status != GL_CONDITION_SATISFIED)
+    throw Error("read-back", "the GPU did not finish the copy within 60 s");
+  return mapped_;
+}
+
+const std::byte* ReadbackBuffer::Read(const Texture& texture, GLenum format, GLenum type, std::size_t bytes,
+                                      int level) {
+  Reserve(bytes);
+  glMemoryBarrier(GL_TEXTURE_UPDATE_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_PIXEL_BUFFER_BARRIER_BIT);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, buffer_.id());
+  glGetTextureImage(texture.id(), level, format, type, static_cast<GLsizei>(bytes), nullptr);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  return Wait();
+}
+
+const std::byte* ReadbackBuffer::Read(const Buffer& buffer, std::size_t offset, std::size_t bytes) {
+  Reserve(bytes);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+  glCopyNamedBufferSubData(buffer.id(), buffer_.id(), static_cast<GLintptr>(offset), 0, static_cast<GLsizeiptr>(bytes));
+  return Wait();
+}
+
 Framebuffer::Framebuffer() { glCreateFramebuffers(1, &id_); }
 
 Framebuffer& Framebuffer::AttachColor(const Texture& texture, int index, int level) {

@@ -122,6 +122,24 @@ class Texture : public Object<Texture> {
   int width_ = 0, height_ = 0, depth_ = 1, levels_ = 1;
 };
 
+// GPU-to-CPU copies through a persistently mapped buffer in host memory: the GPU writes the
+// texture or buffer there itself (glGetTextureImage into a pixel-pack buffer, or a buffer copy)
+// and the CPU reads the mapping once a fence says it is done, where a read straight into client
+// memory let the driver copy on its own terms (53.8 ms for 74 MB, 1.4 GB/s, on an NVIDIA H200).
+// The pointers returned stay valid until the next call.
+class ReadbackBuffer {
+ public:
+  const std::byte* Read(const Texture& texture, GLenum format, GLenum type, std::size_t bytes, int level = 0);
+  const std::byte* Read(const Buffer& buffer, std::size_t offset, std::size_t bytes);
+
+ private:
+  void Reserve(std::size_t bytes);
+  const std::byte* Wait();
+  Buffer buffer_{NoCreate};
+  std::size_t capacity_ = 0;
+  const std::byte* mapped_ = nullptr;
+};
+
 class Framebuffer : public Object<Framebuffer> {
  public:
   Framebuffer();

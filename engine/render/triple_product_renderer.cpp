@@ -470,6 +470,7 @@ struct TripleProductRenderer::Impl {
   // then the pixels' indices).
   gl::Buffer pixel_flags{gl::NoCreate}, flagged_list{gl::NoCreate};
   gl::Buffer counts{gl::NoCreate};
+  gl::ReadbackBuffer readback;            // the layers and counts on their way to the CPU
   gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's sums
 
   const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb) {
@@ -1145,8 +1146,12 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
 
     // Read back.
     t0 = Clock::now();
-    const auto rgba = [&](const gl::Texture& t) { return t.Read<float>(GL_RGBA, GL_FLOAT, 4); };
-    const auto to_rgb = [&](const std::vector<float>& v, std::vector<float>* alpha) {
+    // Each layer through the mapped staging buffer, split into RGB and alpha as it is read.
+    const auto rgba = [&](const gl::Texture& t) {
+      const std::size_t texels = static_cast<std::size_t>(t.width()) * t.height();
+      return reinterpret_cast<const float*>(im.readback.Read(t, GL_RGBA, GL_FLOAT, texels * 4 * sizeof(float)));
+    };
+    const auto to_rgb = [&](const float* v, std::vector<float>* alpha) {
       sphere::EquirectImage img(w, h);
       if (alpha) alpha->resize(pixels);
       for (std::size_t i = 0; i < pixels; ++i) {
@@ -1164,9 +1169,11 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       out.car = to_rgb(rgba(im.car_layer), &out.car_alpha);
       out.shadow = to_rgb(rgba(im.shadow_layer), &out.ground_mask);
       out.background = to_rgb(rgba(im.background_layer), nullptr);
-      const auto raw = im.counts.Read<glm::uvec4>(samples);
+      const auto* raw =
+          reinterpret_cast<const std::uint32_t*>(im.readback.Read(im.counts, 0, samples * 4 * sizeof(std::uint32_t)));
       counts.resize(samples);
-      for (std::size_t i = 0; i < samples; ++i) counts[i] = {raw[i].x, raw[i].y, raw[i].z, raw[i].w};
+      for (std::size_t i = 0; i < samples; ++i)
+        counts[i] = {raw[4 * i], raw[4 * i + 1], raw[4 * i + 2], raw[4 * i + 3]};
       if (adaptive) {
         const auto flags = im.pixel_flags.Read<std::uint32_t>(pixels);
         out.sampled_fully.assign(flags.begin(), flags.end());
@@ -1174,7 +1181,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         out.sampled_fully.assign(pixels, 1);
       }
       if (k > 1) {
-        const std::vector<float> car = rgba(im.shaded_car);
+        const float* car = rgba(im.shaded_car);
         sample_alpha_storage.resize(samples);
         for (std::size_t i = 0; i < samples; ++i) sample_alpha_storage[i] = car[4 * i + 3];
         sample_alpha = &sample_alpha_storage;
