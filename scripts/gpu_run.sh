@@ -60,6 +60,8 @@ env=$src/../shared/data/env
 if [ "$quick" = stages ]; then
   # Where the time goes, stage by stage, before whole benches: the lighting transform's levels
   # (cold, then warm), and 1280x720 renders' voxelize, G-buffer, shade, composite and read-back.
+  # The players first: bench player crashed (SIGSEGV) on the H200 at a37eb02 and not on llvmpipe.
+  step player 60 "$odvr" bench player --size 1280x720 --frames 30 --out "$results/player.md"
   for run in cold warm; do
     step "light_levels_$run" 30 "$odvr" light "$env/sunset.exr" --device gpu --json
   done
@@ -67,10 +69,12 @@ if [ "$quick" = stages ]; then
   render() { step "render_$1" 60 "$odvr" render --model "$src/media/demo/car.glb" --env "$env/sky.exr" \
     --repeat 10 --out "$results/render_$1.png" --json "${@:2}"; }
   render 720p --size 1280x720
+  render 720p_composite --size 1280x720 --composite-only
   render 720p_v64_l4 --size 1280x720 --voxels 64 --levels 4
   render 720p_l1 --size 1280x720 --voxels 64 --levels 1
   render 320 --size 320x180
-  step player 60 "$odvr" bench player --size 1280x720 --frames 30 --out "$results/player.md"
+  step player_live 60 "$odvr" bench player --live --frames 30 --out "$results/player_live.md"
+  step tests_render 150 "$work/engine_tests" --gtest_filter='TripleProductRenderer*GL*:CyclesReference*GL*'
   step light_park 60 "$odvr" bench light --gpu --widths 2048 --max-levels 5 --no-least-squares \
     --repeats 9 --min-time-ms 200 --out "$results/light_park" "$env/park.exr"
 elif [ "$quick" = quick ]; then
