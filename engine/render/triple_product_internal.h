@@ -8,10 +8,27 @@
 #include <memory>
 #include <vector>
 
+#include "engine/gl/objects.h"
 #include "engine/lighting/overlap_bins.h"
 #include "engine/render/triple_product_renderer.h"
 
 namespace odvr::render::detail {
+
+// The render's counts summed over its shaded samples (RenderCounts before the means).
+struct CountSums {
+  long long car = 0, ground = 0, pixels_sampled_fully = 0;
+  long long lobes = 0, cones = 0, sgs = 0, triples = 0;  // over car samples
+  long long cones_total = 0, triples_total = 0;          // over every sample
+};
+
+constexpr int kCountTotals = 15;  // render_counts.comp's per-group totals
+
+// RenderOptions::read_layers off: `program` (render_counts.comp) sums the per-sample counts, the
+// car's coverage taken from `sample_car`'s alpha (the shaded samples' layer), each work group into
+// its slot of `group_totals` (made or grown here); only those slots come back. pixel_flags:
+// adaptive supersampling's flags (pixels of them), counted where 1; null otherwise.
+CountSums SumCountsOnGpu(gl::Program& program, gl::Buffer& counts, gl::Buffer* pixel_flags, gl::Buffer& group_totals,
+                         gl::Texture& sample_car, int samples_width, int samples_height, int pixels);
 
 // The lighting as the shading stage reads it: SRBFs by global index (lighting/overlap_bins.h),
 // amplitude 0 where the model kept none, axes already rotated into the world.

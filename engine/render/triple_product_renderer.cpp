@@ -280,49 +280,51 @@ void SetConeTraceUniforms(gl::Program& program, const visibility::VoxelGridSpec&
       .Set("uConePartialExponent", static_cast<float>(trace.partial_opacity_exponent));
 }
 
-// The render's counts summed over its shaded samples (RenderCounts before the means).
-struct CountSums {
-  long long car = 0, ground = 0, pixels_sampled_fully = 0;
-  long long lobes = 0, cones = 0, sgs = 0, triples = 0;  // over car samples
-  long long cones_total = 0, triples_total = 0;          // over every sample
-};
+}  // namespace
 
-constexpr int kCountTotals = 15;  // render_counts.comp's Totals
+namespace detail {
 
-// RenderOptions::read_layers off: render_counts.comp sums the per-sample counts, the car's coverage
-// taken from `sample_car`'s alpha (the shaded samples' layer), and only the sums come back.
-CountSums SumCountsOnGpu(gl::Program& program, gl::Buffer& counts, gl::Buffer& pixel_flags, gl::Buffer& totals,
-                         gl::Texture& sample_car, int samples_width, int samples_height, int pixels, bool adaptive) {
-  glClearNamedBufferData(totals.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
-  counts.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
-  if (adaptive) pixel_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 1);
-  totals.BindBase(GL_SHADER_STORAGE_BUFFER, 2);
-  sample_car.BindImage(0, GL_READ_ONLY);
-  glProgramUniform2i(program.id(), program.Uniform("uSamplesSize"), samples_width, samples_height);
-  program.Set("uPixels", pixels).Set("uHasFlags", adaptive ? 1 : 0);
+CountSums SumCountsOnGpu(gl::Program& program, gl::Buffer& counts, gl::Buffer* pixel_flags, gl::Buffer& group_totals,
+                         gl::Texture& sample_car, int samples_width, int samples_height, int pixels) {
+  constexpr long long kGroup = 256, kMaxGroups = 256;
   // Enough invocations to fill a GPU, few enough that each sums a stride of samples first.
   const long long covered = std::max<long long>(static_cast<long long>(samples_width) * samples_height, pixels);
-  program.Use().DispatchCovering(static_cast<unsigned>(std::min<long long>(covered, 256LL * 256)));
+  const long long groups = std::clamp<long long>((covered + kGroup - 1) / kGroup, 1, kMaxGroups);
+  const std::size_t bytes = static_cast<std::size_t>(kMaxGroups * kCountTotals) * sizeof(std::uint32_t);
+  if (!group_totals || group_totals.size() < bytes) {
+    group_totals = gl::Buffer();
+    group_totals.Allocate(bytes);
+  }
+  counts.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
+  if (pixel_flags) pixel_flags->BindBase(GL_SHADER_STORAGE_BUFFER, 1);
+  group_totals.BindBase(GL_SHADER_STORAGE_BUFFER, 2);
+  sample_car.BindImage(0, GL_READ_ONLY);
+  glProgramUniform2i(program.id(), program.Uniform("uSamplesSize"), samples_width, samples_height);
+  program.Set("uPixels", pixels).Set("uHasFlags", pixel_flags ? 1 : 0);
+  program.Use().DispatchCovering(static_cast<unsigned>(groups * kGroup));
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-  const std::vector<std::uint32_t> t = totals.Read<std::uint32_t>(kCountTotals);
-  const auto pair = [&](int i) {
-    return static_cast<long long>(t[static_cast<std::size_t>(3 + 2 * i)]) |
-           (static_cast<long long>(t[static_cast<std::size_t>(4 + 2 * i)]) << 32);
-  };
+  const std::vector<std::uint32_t> t =
+      group_totals.Read<std::uint32_t>(static_cast<std::size_t>(groups * kCountTotals));
   CountSums s;
-  s.car = t[0];
-  s.ground = t[1];
-  s.pixels_sampled_fully = t[2];
-  s.lobes = pair(0);
-  s.cones = pair(1);
-  s.sgs = pair(2);
-  s.triples = pair(3);
-  s.cones_total = pair(4);
-  s.triples_total = pair(5);
+  for (long long g = 0; g < groups; ++g) {
+    const std::uint32_t* v = &t[static_cast<std::size_t>(g * kCountTotals)];
+    const auto pair = [&](int i) {
+      return static_cast<long long>(v[3 + 2 * i] | (static_cast<std::uint64_t>(v[4 + 2 * i]) << 32));
+    };
+    s.car += v[0];
+    s.ground += v[1];
+    s.pixels_sampled_fully += v[2];
+    s.lobes += pair(0);
+    s.cones += pair(1);
+    s.sgs += pair(2);
+    s.triples += pair(3);
+    s.cones_total += pair(4);
+    s.triples_total += pair(5);
+  }
   return s;
 }
 
-}  // namespace
+}  // namespace detail
 
 // --- camera, overrides, options -----------------------------------------------------------------
 
@@ -471,7 +473,7 @@ struct TripleProductRenderer::Impl {
   gl::Buffer pixel_flags{gl::NoCreate}, flagged_list{gl::NoCreate};
   gl::Buffer counts{gl::NoCreate};
   gl::ReadbackBuffer readback;            // the layers and counts on their way to the CPU
-  gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's sums
+  gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's group sums
 
   const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb) {
     auto key = std::make_pair(image, srgb);
@@ -541,11 +543,7 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   im.shade_program = gl::ShaderLibrary::Compute("render_shade.comp",
                                                 "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n");
   im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
-  if (!options_.read_layers) {
-    im.counts_program = gl::ShaderLibrary::Compute("render_counts.comp");
-    im.count_totals = gl::Buffer();
-    im.count_totals.Allocate(kCountTotals * sizeof(std::uint32_t));
-  }
+  if (!options_.read_layers) im.counts_program = gl::ShaderLibrary::Compute("render_counts.comp");
   if (options_.supersample > 1) {
     im.resolve_program = gl::ShaderLibrary::Compute("render_resolve.comp");
     im.flag_program = gl::ShaderLibrary::Compute("render_flag.comp");
@@ -930,7 +928,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   const std::size_t pixels = static_cast<std::size_t>(w) * h;
   const std::size_t samples = static_cast<std::size_t>(sw) * sh;
   std::vector<detail::PixelCounts> counts;
-  std::optional<CountSums> gpu_sums;  // RenderOptions::read_layers off
+  std::optional<detail::CountSums> gpu_sums;  // RenderOptions::read_layers off
   // The car's coverage per shaded sample, for the counts: the output's own when not supersampled.
   std::vector<float> sample_alpha_storage;
   const std::vector<float>* sample_alpha = &out.car_alpha;
@@ -1162,8 +1160,9 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     };
     out.composite = to_rgb(rgba(im.composite_layer), nullptr);
     if (!options_.read_layers) {
-      gpu_sums = SumCountsOnGpu(im.counts_program, im.counts, im.pixel_flags, im.count_totals,
-                                k > 1 ? im.shaded_car : im.car_layer, sw, sh, static_cast<int>(pixels), adaptive);
+      gpu_sums =
+          detail::SumCountsOnGpu(im.counts_program, im.counts, adaptive ? &im.pixel_flags : nullptr, im.count_totals,
+                                 k > 1 ? im.shaded_car : im.car_layer, sw, sh, static_cast<int>(pixels));
       if (k > 1 && !adaptive) gpu_sums->pixels_sampled_fully = static_cast<long long>(pixels);
     } else {
       out.car = to_rgb(rgba(im.car_layer), &out.car_alpha);
@@ -1257,7 +1256,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   }
 
   // Counts.
-  CountSums sums;
+  detail::CountSums sums;
   if (gpu_sums) {
     sums = *gpu_sums;
   } else {
