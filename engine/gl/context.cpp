@@ -8,6 +8,7 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <string>
 #include <vector>
 
 #include "engine/core/error.h"
@@ -30,6 +31,22 @@ std::string EglErrorString(EGLint code) {
   return buf;
 }
 
+bool GlDebugRequested() {
+  const char* env = std::getenv("ODVR_GL_DEBUG");
+  return env && std::string(env) != "0" && std::string(env) != "";
+}
+
+void GLAPIENTRY LogGlMessage(GLenum source, GLenum type, GLuint id, GLenum severity, GLsizei length,
+                             const GLchar* message, const void*) {
+  (void)source;
+  if (severity == GL_DEBUG_SEVERITY_NOTIFICATION) return;
+  const std::string text(message, length >= 0 ? static_cast<std::size_t>(length) : std::strlen(message));
+  if (type == GL_DEBUG_TYPE_ERROR)
+    spdlog::error("GL error {:#x}: {}", id, text);
+  else
+    spdlog::warn("GL {:#x}: {}", id, text);
+}
+
 // Creates a 4.5 core context on an initialized display; returns EGL_NO_CONTEXT on failure.
 EGLContext CreateCoreContext(EGLDisplay display, std::string* why) {
   if (!eglBindAPI(EGL_OPENGL_API)) {
@@ -47,9 +64,15 @@ EGLContext CreateCoreContext(EGLDisplay display, std::string* why) {
     }
     config = EGL_NO_CONFIG_KHR;
   }
-  const EGLint context_attribs[] = {
-      EGL_CONTEXT_MAJOR_VERSION,           4,       EGL_CONTEXT_MINOR_VERSION, 5, EGL_CONTEXT_OPENGL_PROFILE_MASK,
-      EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+  const EGLint context_attribs[] = {EGL_CONTEXT_MAJOR_VERSION,
+                                    4,
+                                    EGL_CONTEXT_MINOR_VERSION,
+                                    5,
+                                    EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                                    EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                    EGL_CONTEXT_OPENGL_DEBUG,
+                                    GlDebugRequested() ? EGL_TRUE : EGL_FALSE,
+                                    EGL_NONE};
   EGLContext context = eglCreateContext(display, config, EGL_NO_CONTEXT, context_attribs);
   if (context == EGL_NO_CONTEXT) *why = "no OpenGL 4.5 core context (" + EglErrorString(eglGetError()) + ")";
   return context;
@@ -92,6 +115,13 @@ HeadlessContext::HeadlessContext() : state_(std::make_unique<State>()) {
     state_->display = display;
     state_->context = context;
     state_->platform = platform;
+    if (GlDebugRequested()) {
+      // Each call's errors reported as it returns, so that the log line follows the call.
+      glEnable(GL_DEBUG_OUTPUT);
+      glEnable(GL_DEBUG_OUTPUT_SYNCHRONOUS);
+      glDebugMessageCallback(LogGlMessage, nullptr);
+      spdlog::info("ODVR_GL_DEBUG: logging the driver's GL errors and warnings");
+    }
     return true;
   };
 

@@ -35,6 +35,7 @@ void RequireCurrentGl45(const std::string& who);
 // A 4.5 core context with no window. Prefers a hardware EGL device (NVIDIA's EGL device
 // platform) and falls back to Mesa's surfaceless platform (llvmpipe on machines without a GPU).
 // Set ODVR_EGL_PLATFORM=surfaceless|device to force one. Throws odvr::Error when neither works.
+// ODVR_GL_DEBUG=1 makes it a debug context whose GL errors and warnings go to the log.
 class HeadlessContext {
  public:
   HeadlessContext();
