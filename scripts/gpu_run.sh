@@ -61,6 +61,7 @@ if [ "$quick" = stages ]; then
   # Where the time goes, stage by stage, before whole benches: the lighting transform's levels
   # (cold, then warm), and 1280x720 renders' voxelize, G-buffer, shade, composite and read-back.
   # The players first: bench player crashed (SIGSEGV) on the H200 at a37eb02 and not on llvmpipe.
+  step player_gl_debug 60 env ODVR_GL_DEBUG=1 "$odvr" bench player --size 640x360 --frames 3 --out "$results/player_debug.md"
   step player 60 "$odvr" bench player --size 1280x720 --frames 30 --out "$results/player.md"
   for run in cold warm; do
     step "light_levels_$run" 30 "$odvr" light "$env/sunset.exr" --device gpu --json
