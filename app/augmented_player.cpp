@@ -180,7 +180,9 @@ PlayerReport RunAugmentedHeadless(const PlayerOptions& o) {
 PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
   gl::WindowContext window(o.width, o.height, "odvr — " + o.video);
   GLFWwindow* w = window.window();
-  AugmentedScene scene(SceneOptions(o));
+  AugmentedOptions scene_options = SceneOptions(o);
+  scene_options.composite_on_gpu = true;  // drawn where it was rendered: no read-back, no upload
+  AugmentedScene scene(scene_options);
   const auto script = o.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(o.drive);
   std::pair<int, int> resize{0, 0};
   if (!o.resize.empty()) resize = ParseSize(o.resize, "--resize");
@@ -246,7 +248,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
       frame = scene.Render(rw, rh, view, dt);
       all.push_back(Timings(frame));
       report.frames.push_back(Record(frame));
-      presenter.Show(frame.image, fb_w, fb_h);
+      presenter.Show(scene.composite(), static_cast<float>(o.exposure), fb_w, fb_h);
 
       overlay = {Printf("frame %d (light %d)   car %.1f km/h%s", frame.view_frame, frame.light_frame,
                         scene.car().state().speed_mps * 3.6, paused ? "  (paused)" : ""),

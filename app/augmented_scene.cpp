@@ -221,6 +221,7 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
   ro.cone_rings = options_.cone_rings;
   ro.supersample = options_.supersample;
   ro.read_layers = false;  // the player shows the composite alone
+  ro.read_composite = !options_.composite_on_gpu;
   im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
   im.car_centre = BoundsCentre(*im.renderer);
 
@@ -229,6 +230,8 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
 }
 
 AugmentedScene::~AugmentedScene() = default;
+
+const gl::Texture& AugmentedScene::composite() const { return impl_->renderer->composite_texture(); }
 
 double AugmentedScene::fps() const { return impl_->decoder->fps(); }
 long AugmentedScene::video_frames() const { return impl_->decoder->available_frames(); }

@@ -63,7 +63,10 @@ struct AugmentedOptions {
   double vfov_deg = 70;
   double exposure = 1.0;
   std::size_t frame_cache = 48;  // decoded panoramas kept (8-bit)
-  void Check() const;            // throws odvr::UsageError
+  // A window's frames stay on the GPU: AugmentedFrame::image is left empty and composite() holds
+  // the picture, exposure not applied (FramePresenter applies it as it draws).
+  bool composite_on_gpu = false;
+  void Check() const;  // throws odvr::UsageError
 };
 
 struct AugmentedTimings {  // milliseconds of one shown frame
@@ -122,6 +125,8 @@ class AugmentedScene {
   const lighting::SgLighting& FrameLighting(int frame);
   // The camera of the last Render (car frame = renderer world).
   const render::PinholeCamera& last_camera() const { return last_camera_; }
+  // The last frame's picture on the GPU: linear RGBA32F, rows top first, before the exposure.
+  const gl::Texture& composite() const;
 
  private:
   struct Impl;

@@ -90,8 +90,9 @@ int RunBenchPlayer(const BenchPlayerOptions& b) {
      << "Stages: *decode* = the panoramas the frame needs (the viewer's, the car's light frames) from the "
         "decoder thread, cached; *lighting* = SG models of new light frames (built once each) and their "
         "blend; *render* = voxelize, G-buffer and triple-product shading of the car "
-        "(`TripleProductRenderer`); *read-back* = its composite and its counts' sums to the CPU (the window "
-        "shows a CPU image); *composite* = the viewer frame's panorama through the camera, the "
+        "(`TripleProductRenderer`); *read-back* = its composite and its counts' sums to the CPU (headless "
+        "frames are written as PNG; the window draws the composite where it was rendered and reads back "
+        "the sums alone); *composite* = the viewer frame's panorama through the camera, the "
         "shadow and the car over it. Frames: "
      << r.frames_shown << " (" << r.frames_shown - 1 << " timed).\n";
   md << ExistingLiveSection(b.out);

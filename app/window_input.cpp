@@ -20,6 +20,7 @@
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/objects.h"
+#include "engine/gl/shader_library.h"
 #include "engine/image/image_io.h"
 
 namespace odvr::app {
@@ -90,7 +91,8 @@ void ImGuiSession::Render() {
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 }
 
-void FramePresenter::Show(const sphere::EquirectImage& linear, int framebuffer_width, int framebuffer_height) {
+void FramePresenter::Show(const sphere::EquirectImage& linear, int framebuffer_width, int framebuffer_height,
+                          GLuint target) {
   static const std::vector<std::uint8_t> lut = [] {
     std::vector<std::uint8_t> l(4096);
     for (int i = 0; i < 4096; ++i)
@@ -109,11 +111,39 @@ void FramePresenter::Show(const sphere::EquirectImage& linear, int framebuffer_w
   }
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   texture_.Upload2D(GL_RGB, GL_UNSIGNED_BYTE, srgb.data());
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glBindFramebuffer(GL_FRAMEBUFFER, target);
   glViewport(0, 0, framebuffer_width, framebuffer_height);
   // Rows were uploaded top first; the window's y grows upward: flip in the blit.
-  glBlitNamedFramebuffer(read_fbo_.id(), 0, 0, 0, width, height, 0, framebuffer_height, framebuffer_width, 0,
+  glBlitNamedFramebuffer(read_fbo_.id(), target, 0, 0, width, height, 0, framebuffer_height, framebuffer_width, 0,
                          GL_COLOR_BUFFER_BIT, GL_LINEAR);
+}
+
+void FramePresenter::Show(const gl::Texture& linear_rgba, float exposure, int framebuffer_width, int framebuffer_height,
+                          GLuint target) {
+  if (!linear_rgba) throw Error("frame presenter", "no picture to show (nothing rendered yet)");
+  if (!encode_) {
+    encode_ = gl::ShaderLibrary::Graphics("present.vert", "present.frag");
+    empty_ = gl::VertexArray();
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, target);
+  glViewport(0, 0, framebuffer_width, framebuffer_height);
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_BLEND);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_SCISSOR_TEST);
+  glDisable(GL_FRAMEBUFFER_SRGB);  // the shader encodes
+  // Equal sizes (the players render at the window's) sample texel centres exactly.
+  glTextureParameteri(linear_rgba.id(), GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTextureParameteri(linear_rgba.id(), GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTextureParameteri(linear_rgba.id(), GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTextureParameteri(linear_rgba.id(), GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glBindTextureUnit(0, linear_rgba.id());
+  encode_.Set("uExposure", exposure)
+      .Set("uTargetSize", static_cast<float>(framebuffer_width), static_cast<float>(framebuffer_height))
+      .Use();
+  empty_.Bind();
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glBindVertexArray(0);
 }
 
 void WriteWindowScreenshot(const std::string& path, int width, int height) {

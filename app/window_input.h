@@ -47,15 +47,23 @@ class ImGuiSession {
 };
 
 // Shows a rendered linear picture (rows top first) in the window's back buffer as 8-bit sRGB,
-// scaled to the framebuffer: the augmented and the live player render off-screen at the window's size.
+// scaled to the framebuffer: the augmented and the live player render off-screen at the window's
+// size. From a CPU image (uploaded), or from the renderer's composite where it was made, which
+// spares a player the read-back and the upload (TripleProductRenderer::composite_texture). `target`:
+// the framebuffer drawn into, 0 for the window's.
 class FramePresenter {
  public:
-  void Show(const sphere::EquirectImage& linear, int framebuffer_width, int framebuffer_height);
+  void Show(const sphere::EquirectImage& linear, int framebuffer_width, int framebuffer_height, GLuint target = 0);
+  // linear_rgba: RGB linear, rows top first; times `exposure` before the encoding.
+  void Show(const gl::Texture& linear_rgba, float exposure, int framebuffer_width, int framebuffer_height,
+            GLuint target = 0);
 
  private:
   gl::Texture texture_{gl::NoCreate};
   gl::Framebuffer read_fbo_;
   int width_ = 0, height_ = 0;
+  gl::Program encode_{gl::NoCreate};  // present.vert + present.frag
+  gl::VertexArray empty_{gl::NoCreate};
 };
 
 // printf into a std::string (the overlay's lines: drawn by ImGui and printed by --trace, so what a

@@ -390,6 +390,8 @@ MaterialOverride ParseMaterialOverride(const std::string& text) {
 
 void RenderOptions::Check() const {
   if (lighting_levels < 1 || lighting_levels > 6) throw Error("render levels", "must be in 1..6");
+  if (!read_composite && read_layers)
+    throw Error("render read_composite", "can be off only with read_layers off (the layers include it)");
   if (cone_rings < 0 || cone_rings > 3) throw Error("render cones", "rings must be in 0..3 (1, 7, 19 or 37 cones)");
   if (voxel_resolution < 64 || voxel_resolution > 512 || (voxel_resolution & (voxel_resolution - 1)) != 0)
     throw Error("render voxels", "must be a power of two in 64..512, got " + std::to_string(voxel_resolution));
@@ -667,6 +669,8 @@ TripleProductRenderer::~TripleProductRenderer() = default;
 
 const std::vector<glm::vec3>& TripleProductRenderer::world_triangles() const { return impl_->triangles; }
 const visibility::VoxelGridSpec& TripleProductRenderer::voxel_spec() const { return impl_->spec; }
+const gl::Texture& TripleProductRenderer::composite_texture() const { return impl_->composite_layer; }
+
 int TripleProductRenderer::peaks_without_cone() const {
   return std::max(0, static_cast<int>(impl_->lighting.peaks.size()) - kMaxPeakCones);
 }
@@ -1158,7 +1162,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       }
       return img;
     };
-    out.composite = to_rgb(rgba(im.composite_layer), nullptr);
+    if (options_.read_composite) out.composite = to_rgb(rgba(im.composite_layer), nullptr);
     if (!options_.read_layers) {
       gpu_sums =
           detail::SumCountsOnGpu(im.counts_program, im.counts, adaptive ? &im.pixel_flags : nullptr, im.count_totals,

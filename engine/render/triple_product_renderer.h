@@ -47,6 +47,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/gl/objects.h"
 #include "engine/lighting/sg_lighting.h"
 #include "engine/material/brdf.h"
 #include "engine/sphere/equirect_image.h"
@@ -165,6 +166,9 @@ struct RenderOptions {
   // the composite: the other layers and the per-sample counts are 5× its bytes to bring over a
   // GPU's bus every frame (RenderTimings::readback says what it cost).
   bool read_layers = true;
+  // With read_layers off: false leaves the composite on the GPU too (composite_texture()), for a
+  // window that draws it from there; RenderResult::composite stays empty.
+  bool read_composite = true;
   void Check() const;  // throws odvr::Error naming the field
 };
 
@@ -244,6 +248,9 @@ class TripleProductRenderer {
   const std::vector<glm::vec3>& world_triangles() const;
   const visibility::VoxelGridSpec& voxel_spec() const;
   int peaks_without_cone() const;  // beyond kMaxPeakCones
+  // The last GPU render's composite: RGBA32F at the output size, linear RGB, rows top first (row
+  // 0 of the texture is the picture's top row); empty before the first render.
+  const gl::Texture& composite_texture() const;
 
  private:
   struct Impl;

@@ -311,7 +311,24 @@ TEST_F(TripleProductRendererGL, CompositeOnlyReadsBackTheSameImageAndCounts) {
     EXPECT_EQ(y.cones_per_car_pixel, x.cones_per_car_pixel) << mode.k;
     EXPECT_EQ(y.sgs_per_car_pixel, x.sgs_per_car_pixel) << mode.k;
     EXPECT_EQ(y.triples_per_car_pixel, x.triples_per_car_pixel) << mode.k;
+    // Nothing read back (a window draws composite_texture()): the texture holds the same picture,
+    // rows top first.
+    o.read_composite = false;
+    TripleProductRenderer on_gpu(SphereAndBox(), glm::dmat4(1.0), o);
+    on_gpu.SetLighting(SunnySky());
+    const RenderResult c = on_gpu.Render(View(), ShadeDevice::kGpu);
+    EXPECT_TRUE(c.composite.rgb.empty());
+    EXPECT_EQ(c.counts.triples_total, x.triples_total) << mode.k;
+    const std::vector<float> texels = on_gpu.composite_texture().Read<float>(GL_RGBA, GL_FLOAT, 4);
+    ASSERT_EQ(texels.size() / 4, a.composite.rgb.size() / 3);
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < texels.size() / 4; ++i)
+      for (int ch = 0; ch < 3; ++ch) differ += texels[4 * i + ch] != a.composite.rgb[3 * i + ch];
+    EXPECT_EQ(differ, 0u) << mode.k;
   }
+  RenderOptions bad;
+  bad.read_composite = false;  // with read_layers on
+  EXPECT_THROW(bad.Check(), odvr::Error);
 }
 
 // render_counts.comp's 64-bit sums: a frame's triples can pass 2³² (1280×720 samples × a few
