@@ -38,6 +38,7 @@ struct RenderCliOptions {
   std::string device = "gpu";
   bool json = false;
   bool composite_only = false;
+  int shade_lanes = 1;
   int repeat = 1;
 };
 
@@ -80,6 +81,7 @@ int RunRender(const RenderCliOptions& o) {
   options.supersample_contrast = o.supersample_contrast;
   options.peak_cones = !o.no_peaks;
   options.read_layers = !o.composite_only;
+  options.shade_lanes = o.shade_lanes;
   if (o.composite_only && !o.layers.empty())
     throw UsageError("--composite-only", "reads back the composite alone: it cannot write --layers");
   for (const auto& m : o.materials) options.materials.push_back(render::ParseMaterialOverride(m));
@@ -207,6 +209,7 @@ int RunRender(const RenderCliOptions& o) {
           {"cones_per_broad_lobe", o.cones},
           {"voxels", o.voxels},
           {"supersample", o.supersample},
+          {"shade_lanes", o.shade_lanes},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
           {"ground_pixels_occluded", c.ground_pixels},
@@ -276,6 +279,9 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");
+  sub->add_option("--shade-lanes", o->shade_lanes,
+                  "GPU invocations per pixel, each shading every L-th lobe (1, 2 or 4; the same picture)")
+      ->check(CLI::IsMember({1, 2, 4}));
   sub->add_flag("--composite-only", o->composite_only,
                 "Read back the composite alone, the counts summed on the GPU (as the players do)");
   sub->add_option("--repeat", o->repeat,

@@ -71,9 +71,12 @@ if [ "$quick" = stages ]; then
     --repeat 10 --out "$results/render_$1.png" --json "${@:2}"; }
   render 720p --size 1280x720
   render 720p_composite --size 1280x720 --composite-only
+  render 720p_lanes2 --size 1280x720 --shade-lanes 2
+  render 720p_lanes4 --size 1280x720 --shade-lanes 4
   render 720p_v64_l4 --size 1280x720 --voxels 64 --levels 4
   render 720p_l1 --size 1280x720 --voxels 64 --levels 1
   render 320 --size 320x180
+  render 320_lanes4 --size 320x180 --shade-lanes 4
   step player_live 60 "$odvr" bench player --live --frames 30 --out "$results/player_live.md"
   step tests_render 150 "$work/engine_tests" --gtest_filter='TripleProductRenderer*GL*:CyclesReference*GL*'
   step light_park 60 "$odvr" bench light --gpu --widths 2048 --max-levels 5 --no-least-squares \

@@ -393,6 +393,8 @@ void RenderOptions::Check() const {
   if (!read_composite && read_layers)
     throw Error("render read_composite", "can be off only with read_layers off (the layers include it)");
   if (cone_rings < 0 || cone_rings > 3) throw Error("render cones", "rings must be in 0..3 (1, 7, 19 or 37 cones)");
+  if (shade_lanes != 1 && shade_lanes != 2 && shade_lanes != 4)
+    throw Error("render shade_lanes", "must be 1, 2 or 4, got " + std::to_string(shade_lanes));
   if (voxel_resolution < 64 || voxel_resolution > 512 || (voxel_resolution & (voxel_resolution - 1)) != 0)
     throw Error("render voxels", "must be a power of two in 64..512, got " + std::to_string(voxel_resolution));
   if (!(ground_half_size > 0)) throw Error("render ground_half_size", "must be positive");
@@ -542,8 +544,9 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   gl::RequireCurrentGl45("triple-product renderer");
   Impl& im = *impl_;
   im.gbuffer_program = gl::ShaderLibrary::Graphics("render_gbuffer.vert", "render_gbuffer.frag");
-  im.shade_program = gl::ShaderLibrary::Compute("render_shade.comp",
-                                                "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n");
+  im.shade_program = gl::ShaderLibrary::Compute(
+      "render_shade.comp", "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n" + "#define SHADE_LANES " +
+                               std::to_string(options_.shade_lanes) + "\n");
   im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
   if (!options_.read_layers) im.counts_program = gl::ShaderLibrary::Compute("render_counts.comp");
   if (options_.supersample > 1) {
@@ -1058,7 +1061,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         sp.Set("uSampleStride", k)
             .Set("uSamplePhase", k / 2)
             .Use()
-            .DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+            .DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h),
+                              static_cast<unsigned>(options_.shade_lanes));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
         gl::Program& fp = im.flag_program;
         glProgramUniform2i(fp.id(), fp.Uniform("uSize"), w, h);
@@ -1091,12 +1095,14 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
             .Set("uSampleStride", 1)
             .Set("uSamplePhase", 0);
         if (list_samples > 0)
-          sp.Use().DispatchCovering(kListPitch, static_cast<unsigned>((list_samples + kListPitch - 1) / kListPitch));
+          sp.Use().DispatchCovering(kListPitch, static_cast<unsigned>((list_samples + kListPitch - 1) / kListPitch),
+                                    static_cast<unsigned>(options_.shade_lanes));
       } else {
         sp.Set("uSampleStride", 1)
             .Set("uSamplePhase", 0)
             .Use()
-            .DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh));
+            .DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh),
+                              static_cast<unsigned>(options_.shade_lanes));
       }
     }
     glMemoryBarrier(GL_ALL_BARRIER_BITS);

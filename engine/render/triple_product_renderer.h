@@ -169,6 +169,11 @@ struct RenderOptions {
   // With read_layers off: false leaves the composite on the GPU too (composite_texture()), for a
   // window that draws it from there; RenderResult::composite stays empty.
   bool read_composite = true;
+  // GPU shading: invocations per pixel (1, 2 or 4), each shading every L-th of the pixel's lobes,
+  // summed in shared memory (render_shade.comp). The same picture within float rounding; more
+  // lanes shorten a pixel's serial chain, which bounds the shading on a GPU, and add the lanes'
+  // repeated set-up, which costs on a CPU rasterizer.
+  int shade_lanes = 1;
   void Check() const;  // throws odvr::Error naming the field
 };
 

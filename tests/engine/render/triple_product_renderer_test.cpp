@@ -331,6 +331,52 @@ TEST_F(TripleProductRendererGL, CompositeOnlyReadsBackTheSameImageAndCounts) {
   EXPECT_THROW(bad.Check(), odvr::Error);
 }
 
+// RenderOptions::shade_lanes: 2 or 4 invocations per pixel, each shading every L-th lobe, give
+// the one-invocation picture (float sums in another order) and the same counts, with a peak
+// (its cone and integrals summed across lanes), plainly and with adaptive supersampling (the
+// listed samples' pass).
+TEST_F(TripleProductRendererGL, ShadeLanesGiveTheSamePictureAndCounts) {
+  PinholeCamera view = View();  // half size: the test renders six times
+  view.width /= 2;
+  view.height /= 2;
+  for (int k : {1, 2}) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.supersample = k;
+    TripleProductRenderer one(SphereAndBox(), glm::dmat4(1.0), o);
+    one.SetLighting(SunnySky());
+    const RenderResult a = one.Render(view, ShadeDevice::kGpu);
+    ASSERT_GE(a.counts.peaks, 1);
+    for (int lanes : {2, 4}) {
+      o.shade_lanes = lanes;
+      TripleProductRenderer split(SphereAndBox(), glm::dmat4(1.0), o);
+      split.SetLighting(SunnySky());
+      const RenderResult b = split.Render(view, ShadeDevice::kGpu);
+      ASSERT_EQ(b.car.rgb.size(), a.car.rgb.size());
+      double worst = 0, total = 0;
+      for (std::size_t i = 0; i < a.car.rgb.size(); ++i) {
+        worst = std::max(worst, std::abs(static_cast<double>(b.car.rgb[i]) - a.car.rgb[i]));
+        total += a.car.rgb[i];
+      }
+      const double mean = total / static_cast<double>(a.car.rgb.size());
+      std::printf("k = %d, %d lanes: largest difference %.3g of a mean %.3g\n", k, lanes, worst, mean);
+      EXPECT_GT(a.counts.car_pixels, 50);
+      EXPECT_LE(worst, 1e-5 * std::max(1.0, 1e3 * mean)) << k << " " << lanes;
+      EXPECT_EQ(b.car_alpha, a.car_alpha) << k << " " << lanes;
+      EXPECT_EQ(b.shadow.rgb, a.shadow.rgb) << k << " " << lanes;
+      EXPECT_EQ(b.counts.car_pixels, a.counts.car_pixels);
+      EXPECT_EQ(b.counts.ground_pixels, a.counts.ground_pixels);
+      EXPECT_EQ(b.counts.pixels_sampled_fully, a.counts.pixels_sampled_fully);
+      EXPECT_EQ(b.counts.cones_total, a.counts.cones_total) << k << " " << lanes;
+      EXPECT_EQ(b.counts.triples_total, a.counts.triples_total) << k << " " << lanes;
+      EXPECT_EQ(b.counts.lobes_per_car_pixel, a.counts.lobes_per_car_pixel);
+    }
+  }
+  RenderOptions bad;
+  bad.shade_lanes = 3;
+  EXPECT_THROW(bad.Check(), odvr::Error);
+}
+
 // render_counts.comp's 64-bit sums: a frame's triples can pass 2³² (1280×720 samples × a few
 // thousand each), so the low words must carry into the high ones, across work groups too.
 TEST_F(TripleProductRendererGL, CountSumsCarryPast32Bits) {
