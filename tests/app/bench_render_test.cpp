@@ -54,8 +54,9 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
     tsv << "car\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.12\t0.1\t0.9\t0.84\t0.05\t100\t1000\t6\t16\t2\t0.1\n";
     tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t4\t0.36\t0.3\t0.9\t0.3\t0.1\t100\t1000\t100\t120\t2\n";
     tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t64\t0.04\t0.04\t0.9\t0.6\t0.05\t100\t1000\t900\t920\t2\n";
-    // The timing-only row at 1280×720: 250 ms in all is 4 fps.
-    tsv << "car\tsg\tsplit-axis\t1280\t720\t5\t7\t128\t0\t0\t0\t0\t0\t-1\t0\t0\t200\t250\n";
+    // The timing-only row at 1280×720: 250 ms in all is 4 fps; as the window player renders it
+    // (nothing read back), 40 ms is 25 fps.
+    tsv << "car\tsg\tsplit-axis\t1280\t720\t5\t7\t128\t0\t0\t0\t0\t0\t-1\t0\t0\t200\t250\t1\t0\t30\t40\n";
   }
   const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -77,6 +78,7 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
             std::string::npos)
       << md;
   EXPECT_NE(md.find("= 4.00 fps"), std::string::npos) << md;
+  EXPECT_NE(md.find("shade 30.0 ms, total 40.0 ms = 25.00 fps"), std::string::npos) << md;
   // The supersampled rows: their own table, the adaptive row against the supersampled MC rows only,
   // beside the 1×1 and every-sample rows.
   EXPECT_NE(md.find("| car | 0.200, 100 | 0.120, 10 | 0.120 | no | 0.840 | 6.0 | 300 | 50.0× | 0.040, 900 |"),
@@ -138,7 +140,7 @@ TEST(BenchRender, ReportOnlyRejectsAMalformedTable) {
   const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("render.tsv"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("20 columns"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("22 columns"), std::string::npos) << r.err;
   const CliRun missing = RunOdvr("bench render --report-only --out " + (d.dir / "nowhere").string());
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.err.find("cannot be read"), std::string::npos) << missing.err;
