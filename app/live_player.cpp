@@ -120,7 +120,9 @@ LiveReport RunLiveWindow(const LivePlayOptions& o) {
   const PlayerOptions& p = o.player;
   gl::WindowContext window(p.width, p.height, "odvr live — " + o.rig);
   GLFWwindow* w = window.window();
-  LiveScene scene(SceneOptions(o));
+  LiveSceneOptions scene_options = SceneOptions(o);
+  scene_options.composite_on_gpu = true;  // with the car: drawn where it was rendered, no read-back
+  LiveScene scene(scene_options);
   const auto script = p.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(p.drive);
   glfwSwapInterval(0);  // the cameras pace the loop
 
@@ -171,7 +173,10 @@ LiveReport RunLiveWindow(const LivePlayOptions& o) {
       for (auto& m : scene.TakeMessages()) report.messages.push_back(std::move(m));
       all.push_back(frame.ms);
       report.frames.push_back(Record(frame));
-      presenter.Show(frame.image, fb_w, fb_h);
+      if (frame.image.empty())
+        presenter.Show(scene.composite(), static_cast<float>(p.exposure), fb_w, fb_h);
+      else
+        presenter.Show(frame.image, fb_w, fb_h);
 
       imgui.NewFrame();
       ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);

@@ -95,6 +95,7 @@ LiveScene::LiveScene(LiveSceneOptions options) : options_(std::move(options)), i
     ro.voxel_resolution = options_.voxel_resolution;
     ro.supersample = options_.supersample;
     ro.read_layers = false;  // the player shows the composite alone
+    ro.read_composite = !options_.composite_on_gpu;
     im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
     im.car_centre = BoundsCentre(*im.renderer);
   }
@@ -112,6 +113,11 @@ LiveScene::LiveScene(LiveSceneOptions options) : options_(std::move(options)), i
 LiveScene::~LiveScene() = default;
 
 const capture::Rig& LiveScene::rig() const { return impl_->rig; }
+
+const gl::Texture& LiveScene::composite() const {
+  if (!impl_->renderer) throw Error("live scene", "no car, so no composite on the GPU");
+  return impl_->renderer->composite_texture();
+}
 capture::SourceStats LiveScene::source_stats() const { return impl_->source->stats(); }
 std::string LiveScene::source_description() const { return impl_->source->description(); }
 

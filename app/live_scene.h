@@ -42,6 +42,9 @@ struct LiveSceneOptions {
   int supersample = 1;  // render::RenderOptions::supersample (adaptive, its default contrast)
   double vfov_deg = 90;
   double exposure = 1.0;
+  // A window's frames with the car stay on the GPU: LiveFrame::image is left empty and
+  // LiveScene::composite() holds the picture, exposure not applied (FramePresenter applies it).
+  bool composite_on_gpu = false;
   std::chrono::milliseconds first_set_timeout{5000};  // a source that delivers nothing is an error
   std::chrono::milliseconds set_timeout{200};         // later: show the last picture and go on
   void Check() const;                                 // throws odvr::UsageError
@@ -87,6 +90,9 @@ class LiveScene {
   std::string source_description() const;
   const capture::Rig& rig() const;
   const CarController& car() const { return *car_; }
+  // With composite_on_gpu: the last frame's picture when it had the car (LiveFrame::image empty),
+  // linear RGBA32F, rows top first, before the exposure.
+  const gl::Texture& composite() const;
 
  private:
   struct Impl;
