@@ -22,6 +22,7 @@
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
+#include "engine/gl/objects.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/lighting/lighting_errors.h"
@@ -354,8 +355,11 @@ void WriteReport(const std::vector<Row>& rows, const BenchLightOptions& o, const
      << "fit's); `input` is that frame's own "
      << "error against the native map (the enlargement blurs a sun: no model made from the frame does better); `sh` is "
         "spherical harmonics of that order, projected from the same "
-     << "frame area-resampled to " << o.sh_width << " wide (the resampling is in its time). Time is the median of "
-     << o.repeats << " or more runs (until " << o.min_time_ms << " ms have passed, at most " << kMaxRuns
+     << "frame area-resampled to " << o.sh_width << " wide (the resampling is in its time). Device `gpu` takes "
+     << "the frame from the CPU (its upload, or its resampling to the transform's finest grid on the CPU's "
+     << "threads, is in the time); `gpu-resident` runs `sg` from the frame already in a GPU texture (as a GPU "
+     << "stitcher hands it), resampled on the GPU. Time is the median of " << o.repeats << " or more runs (until "
+     << o.min_time_ms << " ms have passed, at most " << kMaxRuns
      << ") on one frame, each a warm call as playback makes it every frame (one untimed call first builds "
      << "the transform's overlap lists and the builder's scratch grid).\n\n"
      << "| width | method | device | levels/order | coefficients | ms | rel_l2 | diffuse | glossy20 | glossy200 |\n"
@@ -433,6 +437,10 @@ int RunBenchLight(BenchLightOptions o) {
     const std::string name = fs::path(path).stem().string();
     const lighting::LightingErrorEvaluator evaluator(native);
     for (int width : o.widths) {
+      if (width < native.width)
+        throw UsageError("--widths", std::to_string(width) + " is narrower than " + path + " (" +
+                                         std::to_string(native.width) +
+                                         " wide): the bench enlarges maps, and judges every model against the map");
       const sphere::EquirectImage frame =
           width == native.width ? native : sphere::UpsampleBilinear(native, width, width / 2);
       // Every method is judged against the native map, but an enlarged frame is not the native
@@ -515,6 +523,20 @@ int RunBenchLight(BenchLightOptions o) {
             });
             rows.push_back({name, width, peaks ? "sg+peaks" : "sg", std::string(device), levels, model.sg_count(),
                             Median(times), evaluator.Evaluate(model)});
+            if (device == "gpu" && !peaks) {
+              // The frame already in a GPU texture, as a GPU stitcher or decoder hands it: the
+              // transform alone, without the upload and the CPU resampling that `gpu` includes.
+              gl::Texture texture = gl::Texture::Create2D(GL_RGB32F, frame.width, frame.height);
+              texture.Upload2D(GL_RGB, GL_FLOAT, frame.rgb.data());
+              lighting::SgLighting resident = gpu->Run(texture);  // warm-up: this grid's lists
+              const std::vector<double> resident_times = TimedRuns(o, [&] {
+                lighting::TransformReport report;
+                resident = gpu->Run(texture, &report);
+                return report.total_ms;
+              });
+              rows.push_back({name, width, "sg", "gpu-resident", levels, resident.sg_count(), Median(resident_times),
+                              evaluator.Evaluate(resident)});
+            }
           }
         gpu.reset();
       }

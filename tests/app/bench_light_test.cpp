@@ -5,7 +5,11 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "tests/app/run_odvr.h"
 
@@ -118,6 +122,43 @@ TEST(BenchLight, ReportCountsGrowthsBeyondTheFramesOwnError) {
   EXPECT_NE(md.find("when a level was added** in 1 of 4 level sequences, and in 1 more it rose but stayed within"),
             std::string::npos)
       << md;
+}
+
+}  // namespace
+
+namespace {
+
+// The real bench with --gpu on one small map: besides `sg` from a CPU frame, `gpu-resident` runs
+// the transform from the frame already in a GPU texture, and fits the same model (the same errors
+// within rounding: the finest grid is area-resampled on the GPU there, on the CPU in `gpu`).
+TEST(BenchLightGL, GpuResidentRowsFitTheSameModel) {
+  const std::string map = std::string(ODVR_SHARED_DIR) + "/data/env/park.exr";
+  if (!std::filesystem::exists(map)) GTEST_SKIP() << "the shared environment maps are absent";
+  ScratchDir scratch("bench_light_gpu");
+  const auto run = RunOdvr(
+      "bench light --gpu --widths 512 --max-levels 2 --no-least-squares --skip-peaks "
+      "--repeats 1 --min-time-ms 0 --out " +
+      scratch.dir.string() + " " + map);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  std::map<std::pair<std::string, int>, std::vector<double>> errors;  // (device, levels) → errors
+  std::ifstream tsv(scratch.dir / "lighting.tsv");
+  for (std::string line; std::getline(tsv, line);) {
+    std::vector<std::string> v;
+    std::istringstream cells(line);
+    for (std::string c; std::getline(cells, c, '\t');) v.push_back(c);
+    if (v.size() < 11 || v[2] != "sg") continue;
+    errors[{v[3], std::stoi(v[4])}] = {std::stod(v[7]), std::stod(v[8]), std::stod(v[9]), std::stod(v[10])};
+  }
+  for (int levels : {1, 2}) {
+    ASSERT_TRUE(errors.count({"gpu", levels}) && errors.count({"gpu-resident", levels})) << levels;
+    const auto &a = errors[{"gpu", levels}], &b = errors[{"gpu-resident", levels}];
+    for (std::size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(b[i], a[i], 1e-3 + 1e-2 * a[i]) << levels << " " << i;
+  }
+  EXPECT_NE(ReadText(scratch.dir / "lighting.md").find("| 512 | sg | gpu-resident | 2 |"), std::string::npos);
+  // A width below the map's is a usage error that says so (the bench only enlarges maps).
+  const auto narrow = RunOdvr("bench light --widths 256 --max-levels 1 --out " + scratch.dir.string() + " " + map);
+  EXPECT_EQ(narrow.exit_code, 2);
+  EXPECT_NE(narrow.err.find("narrower than"), std::string::npos) << narrow.err;
 }
 
 }  // namespace
