@@ -477,6 +477,14 @@ struct TripleProductRenderer::Impl {
   gl::Buffer pixel_flags{gl::NoCreate}, flagged_list{gl::NoCreate};
   gl::Buffer counts{gl::NoCreate};
   gl::ReadbackBuffer readback;            // the layers and counts on their way to the CPU
+  std::array<GLuint, 5> stage_queries{};  // GL timestamps between the GPU path's stages
+
+  Impl() = default;
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+  ~Impl() {
+    if (stage_queries[0] != 0) glDeleteQueries(static_cast<GLsizei>(stage_queries.size()), stage_queries.data());
+  }
   gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's group sums
 
   const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb) {
@@ -822,7 +830,14 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   static std::vector<Impl::Primitive> no_primitives;
   gl::Finish();
 
-  // Voxelize.
+  // Voxelize. GL timestamps around the GPU path's stages, read once the composite is done.
+  const bool gpu_stages = device == ShadeDevice::kGpu;
+  if (gpu_stages && im.stage_queries[0] == 0)
+    glCreateQueries(GL_TIMESTAMP, static_cast<GLsizei>(im.stage_queries.size()), im.stage_queries.data());
+  const auto stamp = [&](int i) {
+    if (gpu_stages) glQueryCounter(im.stage_queries[static_cast<std::size_t>(i)], GL_TIMESTAMP);
+  };
+  stamp(0);
   auto t0 = Clock::now();
   if (geometry) {
     if (device == ShadeDevice::kGpu) {
@@ -835,6 +850,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     }
   }
   out.ms.voxelize = MsSince(t0);
+  stamp(1);
 
   // G-buffer, at the shaded size (RenderOptions::supersample).
   t0 = Clock::now();
@@ -928,6 +944,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   gl::Finish();
   out.ms.gbuffer = MsSince(t0);
+  stamp(2);
 
   const glm::dvec2 ground_centre(im.bounds.empty() ? 0.0 : im.bounds.center().x,
                                  im.bounds.empty() ? 0.0 : im.bounds.center().z);
@@ -1123,6 +1140,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     }
     gl::Finish();
     out.ms.shade = MsSince(t0);
+    stamp(3);
 
     // Composite.
     t0 = Clock::now();
@@ -1151,6 +1169,16 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     glMemoryBarrier(GL_ALL_BARRIER_BITS);
     gl::Finish();
     out.ms.composite = MsSince(t0);
+    stamp(4);
+    std::array<GLuint64, 5> ns{};
+    for (std::size_t i = 0; i < ns.size(); ++i) glGetQueryObjectui64v(im.stage_queries[i], GL_QUERY_RESULT, &ns[i]);
+    const auto between = [&](int a, int b) {
+      return static_cast<double>(ns[static_cast<std::size_t>(b)] - ns[static_cast<std::size_t>(a)]) * 1e-6;
+    };
+    out.ms.gpu_voxelize = between(0, 1);
+    out.ms.gpu_gbuffer = between(1, 2);
+    out.ms.gpu_shade = between(2, 3);
+    out.ms.gpu_composite = between(3, 4);
 
     // Read back.
     t0 = Clock::now();

@@ -197,6 +197,9 @@ struct RenderCounts {
 struct RenderTimings {  // milliseconds, measured after glFinish
   double voxelize = 0, gbuffer = 0, shade = 0, composite = 0, total = 0;
   double readback = 0;  // GPU shading: the results to the CPU (RenderOptions::read_layers says which)
+  // GPU shading: the same stages by the GPU's own clock (GL timestamps around each), which leaves
+  // out what the driver and the waits add; -1 on the CPU path.
+  double gpu_voxelize = -1, gpu_gbuffer = -1, gpu_shade = -1, gpu_composite = -1;
 };
 
 struct RenderResult {

@@ -78,6 +78,13 @@ TEST(RunRender, CompositeOnlyGivesTheSameImageAndCounts) {
     EXPECT_EQ(j[0].at("counts").at(count), j[1].at("counts").at(count)) << count;
   EXPECT_GT(j[1].at("counts").at("car_pixels").get<int>(), 100);
   EXPECT_GT(j[1].at("ms").at("readback").get<double>(), 0);
+  // Each GPU stage by the GPU's clock too: positive, and within what the wall clock saw of it.
+  for (const char* stage : {"voxelize", "gbuffer", "shade", "composite"}) {
+    const double gpu = j[1].at("ms").at(std::string("gpu_") + stage).get<double>();
+    const double wall = j[1].at("ms").at(stage).get<double>();
+    EXPECT_GT(gpu, 0) << stage;
+    EXPECT_LE(gpu, 1.1 * wall + 1.0) << stage;
+  }
   const CliRun bad = RunOdvr("render " + kArgs + " --size 64x36 --composite-only --out " + (d.dir / "x.png").string() +
                              " --layers " + (d.dir / "layers").string());
   EXPECT_NE(bad.exit_code, 0);
