@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "app/bench_common.h"
 #include "app/commands.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
@@ -167,8 +168,7 @@ int RunRender(const RenderCliOptions& o) {
     if (steady.empty()) return first.*stage;
     std::vector<double> v;
     for (const auto& t : steady) v.push_back(t.*stage);
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    return v[v.size() / 2];
+    return Median(std::move(v));
   };
   image::SaveImage(o.out, r.composite);
   if (!o.layers.empty()) {

@@ -476,6 +476,7 @@ struct TripleProductRenderer::Impl {
   // then the pixels' indices).
   gl::Buffer pixel_flags{gl::NoCreate}, flagged_list{gl::NoCreate};
   gl::Buffer counts{gl::NoCreate};
+  gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's group sums
   gl::ReadbackBuffer readback;            // the layers and counts on their way to the CPU
   std::array<GLuint, 5> stage_queries{};  // GL timestamps between the GPU path's stages
 
@@ -485,7 +486,6 @@ struct TripleProductRenderer::Impl {
   ~Impl() {
     if (stage_queries[0] != 0) glDeleteQueries(static_cast<GLsizei>(stage_queries.size()), stage_queries.data());
   }
-  gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's group sums
 
   const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb) {
     auto key = std::make_pair(image, srgb);

@@ -3,10 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <numeric>
 #include <random>
+#include <string>
 #include <thread>
 #include <vector>
+
+#include "engine/core/error.h"
 
 namespace odvr {
 namespace {
@@ -28,6 +32,29 @@ bool EachOnce(const std::vector<int>& visits) {
   for (const int v : visits)
     if (v != 1) return false;
   return true;
+}
+
+// ODVR_THREADS sets the default pool's size; anything but a whole number in 1..1024 is an error
+// that names the variable and the value.
+TEST(Parallel, OdvrThreadsSetsThePoolSizeAndRejectsBadValues) {
+  const char* before = std::getenv("ODVR_THREADS");
+  const std::string saved = before ? before : "";
+  setenv("ODVR_THREADS", "3", 1);
+  EXPECT_EQ(ThreadPool().size(), 3);
+  for (const char* bad : {"0", "abc", "2x", "", "5000"}) {
+    setenv("ODVR_THREADS", bad, 1);
+    try {
+      ThreadPool pool;
+      ADD_FAILURE() << "'" << bad << "' was taken";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("ODVR_THREADS"), std::string::npos) << e.what();
+    }
+  }
+  if (before)
+    setenv("ODVR_THREADS", saved.c_str(), 1);
+  else
+    unsetenv("ODVR_THREADS");
+  EXPECT_EQ(ThreadPool().size(), DefaultThreadCount());
 }
 
 TEST(Parallel, BackToBackLoopsVisitEveryIndexExactlyOnce) {
