@@ -87,6 +87,15 @@ uniform int uGroundShadowsBounce;  // RenderOptions::ground_shadows_bounce
 uniform float uGroundLitHalfAngle;
 uniform vec3 uGroundRadiance;  // detail::PreparedLighting::GroundRadiance
 
+// The ground's lobe is the same clamped cosine about +y at every ground pixel, and so are its
+// cones' axes and every lighting SG's weights over them: only the cones' visibilities differ.
+// Its shadowed lighting Σ_j a_j ∫P_j Σ_i v_i w_ij / Σ_i w_ij is therefore Σ_i v_i C_i with
+// C_i = Σ_j a_j ∫P_j w_ij / Σ_i w_ij, which a pass of one group (uGroundTablePass) computes
+// once per render: entries 0 … kMaxCones − 1 C_i, kMaxCones the unshadowed Σ_j a_j ∫P_j, then
+// per peak with its own cone a_k ∫P_k. A ground pixel then costs its cones, not cones × SGs.
+layout(std430, binding = 11) buffer GroundTable { vec4 groundTable[]; };
+uniform int uGroundTablePass;
+
 uniform int uGroundPeakCount;
 uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
 uniform float uGroundPeakShare[8];
@@ -208,35 +217,44 @@ struct ConeSet {
   float cosine_ratio[kMaxCones];
 };
 
-void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
+// The cones' axes, their SG's λ and half-angle, without tracing them.
+float lobeConeAxes(vec3 axis, float lambda, inout ConeSet set) {
   float half_value = halfValueAngle(lambda);
   if (half_value <= uSingleConeMaxHalfAngle || CONE_RINGS == 0) {
     float a = min(half_value, uMaxConeHalfAngle);
     set.count = 1;
     set.axis[0] = axis;
     set.lambda = lambdaForHalfValueAngle(a);
-    set.visibility[0] = traceCone(p, axis, a);
+    return a;
+  }
+  float cap = capHalfAngleHolding(lambda, uConeCoverage);
+  float beta = min(cap / float(2 * CONE_RINGS + 1), uMaxConeHalfAngle);
+  vec3 helper = abs(axis.z) < 0.9 ? vec3(0, 0, 1) : vec3(1, 0, 0);
+  vec3 e1 = normalize(cross(helper, axis)), e2 = cross(axis, e1);
+  // Ring r's cones start at 1 + 3r(r − 1): indices the compiler knows once the loops unroll,
+  // where a running count made the array dynamically indexed (local memory on a GPU).
+  set.count = kMaxCones;
+  set.axis[0] = axis;
+  for (int r = 1; r <= CONE_RINGS; ++r) {
+    float theta = min(2.0 * float(r) * beta, kSgPi);
+    float phase = (r % 2 == 0) ? kSgPi / float(6 * r) : 0.0;
+    for (int k = 0; k < 6 * r; ++k) {
+      float phi = phase + kTwoPi * float(k) / float(6 * r);
+      set.axis[1 + 3 * r * (r - 1) + k] = normalize(cos(theta) * axis + sin(theta) * (cos(phi) * e1 + sin(phi) * e2));
+    }
+  }
+  set.lambda = lambdaForHalfValueAngle(beta);
+  return beta;
+}
+
+void traceLobeCones(vec3 axis, float lambda, vec3 p, inout ConeSet set) {
+  float half_angle = lobeConeAxes(axis, lambda, set);
+  if (set.count == 1) {
+    set.visibility[0] = traceCone(p, axis, half_angle);
     set.ground_lit[0] = groundLit(p, axis);
   } else {
-    float cap = capHalfAngleHolding(lambda, uConeCoverage);
-    float beta = min(cap / float(2 * CONE_RINGS + 1), uMaxConeHalfAngle);
-    vec3 helper = abs(axis.z) < 0.9 ? vec3(0, 0, 1) : vec3(1, 0, 0);
-    vec3 e1 = normalize(cross(helper, axis)), e2 = cross(axis, e1);
-    // Ring r's cones start at 1 + 3r(r − 1): indices the compiler knows once the loops unroll,
-    // where a running count made the array dynamically indexed (local memory on a GPU).
-    set.count = kMaxCones;
-    set.axis[0] = axis;
-    for (int r = 1; r <= CONE_RINGS; ++r) {
-      float theta = min(2.0 * float(r) * beta, kSgPi);
-      float phase = (r % 2 == 0) ? kSgPi / float(6 * r) : 0.0;
-      for (int k = 0; k < 6 * r; ++k) {
-        float phi = phase + kTwoPi * float(k) / float(6 * r);
-        set.axis[1 + 3 * r * (r - 1) + k] = normalize(cos(theta) * axis + sin(theta) * (cos(phi) * e1 + sin(phi) * e2));
-      }
-    }
-    set.lambda = lambdaForHalfValueAngle(beta);
     for (int i = 0; i < kMaxCones; ++i) {
-      set.visibility[i] = traceCone(p, set.axis[i], beta);
+      set.visibility[i] = traceCone(p, set.axis[i], half_angle);
       set.ground_lit[i] = groundLit(p, set.axis[i]);
     }
   }
@@ -465,6 +483,36 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
   gCount.y += uint(gSet.count);
 }
 
+// uGroundTablePass: invocation i < kMaxCones shades the ground's lobe as if cone i alone were
+// visible, which yields C_i (and, for i = 0, the unshadowed sum); invocation kMaxCones + 1 + k
+// shades the traced peak k alone.
+void buildGroundTable() {
+  int i = int(gl_LocalInvocationIndex);
+  const vec3 up = vec3(0, 1, 0);
+  lobeConeAxes(up, kCosineSgLambda, gSet);
+  gCosine = true;
+  gCosineNormal = up;
+  coneCosineRatios(up, true, gSet);
+  gSet.all_visible = false;
+  gSet.ground_shadowed = false;
+  for (int j = 0; j < kMaxCones; ++j) {
+    gSet.visibility[j] = j == i ? 1.0 : 0.0;
+    gSet.ground_lit[j] = 1.0;
+  }
+  uvec4 count = uvec4(0);
+  vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
+  if (i < kMaxCones) {
+    shadeLobe(up, kCosineSgLambda, 0.0, gSet, shaded, unshadowed, count);
+    groundTable[i] = vec4(shaded, 0.0);
+    if (i == 0) groundTable[kMaxCones] = vec4(unshadowed, 0.0);
+  } else if (i > kMaxCones && i <= kMaxCones + kMaxPeaks) {
+    float alone[kMaxPeaks];
+    for (int k = 0; k < kMaxPeaks; ++k) alone[k] = k == i - kMaxCones - 1 ? 1.0 : 0.0;
+    shadePeaks(up, kCosineSgLambda, true, alone, shaded, unshadowed);
+    groundTable[i] = vec4(shaded, 0.0);
+  }
+}
+
 #if SHADE_LANES > 1
 // Scalars, not vec3s, which a compiler may pad to four: at 4 lanes this is 31 744 of the 32 768
 // bytes a GL 4.5 implementation has to offer.
@@ -496,6 +544,10 @@ void main() {
   gCosineNormal = vec3(0.0, 1.0, 0.0);
   gRadiance = vec3(0.0);
   for (int k = 0; k < kMaxPeaks; ++k) gPeakSum[k] = vec3(0.0);
+  if (uGroundTablePass != 0) {  // one group, all of it here: no barrier below is reached
+    buildGroundTable();
+    return;
+  }
   vec4 car = vec4(0.0);
   vec4 shadow = vec4(1.0, 1.0, 1.0, 0.0);
   int material = -1;
@@ -540,19 +592,23 @@ void main() {
         p.y = 0.0;
         const vec3 up = vec3(0, 1, 0);
         traceLobeCones(up, kCosineSgLambda, p, gSet);
-        gCosine = true;
-        gCosineNormal = up;
-        coneCosineRatios(up, true, gSet);
         tracePeakCones(p, gPeakVisibility, gCount);
         gCount.y += uint(gSet.count);
         bool lit = gSet.all_visible;
         for (int k = 0; k < kMaxPeaks; ++k) lit = lit && gPeakVisibility[k] >= 1.0;
         shadow.a = 1.0;
         if (!lit) {
-          vec3 shaded = vec3(0.0), unshadowed = vec3(0.0);
-          shadeLobe(up, kCosineSgLambda, 0.0, gSet, shaded, unshadowed, gCount);
-          shadePeaks(up, kCosineSgLambda, true, gPeakVisibility, shaded, unshadowed);
+          vec3 shaded = vec3(0.0), unshadowed = groundTable[kMaxCones].rgb;
+          for (int i = 0; i < kMaxCones; ++i)
+            if (i < gSet.count) shaded += gSet.visibility[i] * groundTable[i].rgb;
+          if (uPeakCones != 0)
+            for (int k = 0; k < kMaxPeaks; ++k)
+              if (k < uPeakCount) {
+                shaded += gPeakVisibility[k] * groundTable[kMaxCones + 1 + k].rgb;
+                unshadowed += groundTable[kMaxCones + 1 + k].rgb;
+              }
           gCount.x += 1u;
+          gCount.z += uint(gSet.count);  // one weighted sum over the cones, no SG per pixel
           for (int c = 0; c < 3; ++c) shadow[c] = unshadowed[c] > 0.0 ? clamp(shaded[c] / unshadowed[c], 0.0, 1.0) : 1.0;
         }
       }

@@ -476,6 +476,9 @@ struct TripleProductRenderer::Impl {
   // then the pixels' indices).
   gl::Buffer pixel_flags{gl::NoCreate}, flagged_list{gl::NoCreate};
   gl::Buffer counts{gl::NoCreate};
+  // render_shade.comp's GroundTable: per cone of the ground's lobe, per traced peak, and the
+  // unshadowed sum, the lighting the ground sees through it (one vec4 each).
+  gl::Buffer ground_table{gl::NoCreate};
   gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's group sums
   gl::ReadbackBuffer readback;            // the layers and counts on their way to the CPU
   std::array<GLuint, 5> stage_queries{};  // GL timestamps between the GPU path's stages
@@ -556,6 +559,11 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
       "render_shade.comp", "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n" + "#define SHADE_LANES " +
                                std::to_string(options_.shade_lanes) + "\n");
   im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
+  {
+    const int cones = 1 + 3 * options_.cone_rings * (options_.cone_rings + 1);  // render_shade.comp's kMaxCones
+    im.ground_table = gl::Buffer();
+    im.ground_table.Allocate(static_cast<std::size_t>(cones + 1 + kMaxPeakCones) * 4 * sizeof(float));
+  }
   if (!options_.read_layers) im.counts_program = gl::ShaderLibrary::Compute("render_counts.comp");
   if (options_.supersample > 1) {
     im.resolve_program = gl::ShaderLibrary::Compute("render_resolve.comp");
@@ -1068,7 +1076,13 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       mp.Use().DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh));
     } else {
       im.cosine_table.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
-      sp.Set("uOutWidth", w).Set("uFactor", k).Set("uAdaptivePass", 0);
+      im.ground_table.BindBase(GL_SHADER_STORAGE_BUFFER, 11);
+      if (options_.ground) {
+        sp.Set("uGroundTablePass", 1).Use();
+        glDispatchCompute(1, 1, 1);
+        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      }
+      sp.Set("uGroundTablePass", 0).Set("uOutWidth", w).Set("uFactor", k).Set("uAdaptivePass", 0);
       if (adaptive) {
         // The samples a pass leaves unshaded must read as empty in the counts and the coverage.
         glClearNamedBufferData(im.counts.id(), GL_RGBA32UI, GL_RGBA_INTEGER, GL_UNSIGNED_INT, nullptr);

@@ -28,10 +28,13 @@
 //   render medians, 6 runs beside main's binary), mean_rel within 0.003 of that.
 // - Ground (y = 0, Lambertian, within ground_half_size of the model's centre): the same sums
 //   for the clamped-cosine lobe around +Y, shadowed over unshadowed, per channel: the shadow
-//   ratio. The model is voxelized alone, so the ground never shadows itself, and the car's
-//   cones do not see the ground: light from below the horizon comes from the environment's
-//   lower half (the real road in a street panorama), which stands in for the ground's bounce,
-//   darkened where the car shadows the ground (ground_shadows_bounce).
+//   ratio. Its lobe, cones and lighting weights are the same at every ground pixel, so the sums
+//   collapse to one per cone, computed once per render (render_shade.comp's ground table): a
+//   ground pixel costs its cones, not cones × SGs. The model is voxelized alone, so the ground
+//   never shadows itself, and the car's cones do not see the ground: light from below the
+//   horizon comes from the environment's lower half (the real road in a street panorama), which
+//   stands in for the ground's bounce, darkened where the car shadows the ground
+//   (ground_shadows_bounce).
 // - Composite = background × shadow ratio, then the car layer (alpha = coverage) over it.
 //
 // Conventions: world frame +Y up, metres (DESIGN.md §3); the camera is OpenCV's (x right,
@@ -191,7 +194,7 @@ struct RenderCounts {
   double triples_per_car_pixel = 0;  // lobe × cone × SG integrals evaluated (0 where unoccluded)
   int pixels_sampled_fully = 0;      // supersample > 1: pixels whose every sample was shaded
   long long cones_total = 0;         // over every pixel, ground included
-  long long triples_total = 0;
+  long long triples_total = 0;       // a ground pixel counts its cones' weighted sum (the ground table)
 };
 
 struct RenderTimings {  // milliseconds, measured after glFinish
