@@ -54,6 +54,8 @@ struct BenchRenderOptions {
   bool lobe_modes = true;     // also the four warp × cosine modes at the default configuration
   bool hd_row = true;         // a 1280×720 row (shade ms)
   bool ground_bounce = true;  // the media maps' lower half = Cycles' catcher seen from the car
+  // The SG rows' lighting lists (RenderOptions::depth_per_lobe), for A/B runs.
+  bool depth_per_lobe = render::RenderOptions{}.depth_per_lobe;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
 };
@@ -284,10 +286,13 @@ std::string LobeName(const material::LobeOptions& l) {
          (l.cosine == material::CosineTerm::kAtLobeAxis ? "axis" : "sg");
 }
 
+// What every row starts from: RenderOptions' defaults, but for RunBenchRender's list options.
+render::RenderOptions g_row_defaults;
+
 Row RenderRow(const Reference& ref, const std::string& method, int levels, int cones, int voxels, int samples,
               const material::LobeOptions& lobes, int width = 0, int height = 0, unsigned seed = 1,
               const std::string& images_dir = "", int supersample = 1, double contrast = 0) {
-  render::RenderOptions o;
+  render::RenderOptions o = g_row_defaults;
   o.supersample = supersample;
   o.supersample_contrast = contrast;
   o.lighting_levels = levels;
@@ -670,8 +675,10 @@ int RunBenchRender(BenchRenderOptions o) {
                   [&](const Reference& r) { return std::find(o.only.begin(), o.only.end(), r.name) == o.only.end(); });
   if (refs.empty()) throw UsageError("bench render", "no reference to run");
 
+  g_row_defaults.depth_per_lobe = o.depth_per_lobe;
   gl::HeadlessContext context;
-  const std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
+  std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
+  if (!o.depth_per_lobe) machine += "; --bin-depth";
   // One-at-a-time around the default: every level count, cone count and resolution once.
   std::vector<std::array<int, 3>> configs;
   for (int l : o.levels) configs.push_back({l, kDefaultCones, kDefaultVoxels});
@@ -751,6 +758,8 @@ CommandFn AddBenchRender(CLI::App* sub) {
   sub->add_flag("!--no-hd", o->hd_row, "Skip the 1280x720 timing row");
   sub->add_flag("!--no-ground-bounce", o->ground_bounce,
                 "Light the media references from their maps' lower half, not from Cycles' catcher plane");
+  sub->add_flag("!--bin-depth", o->depth_per_lobe,
+                "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchRender(*o); };

@@ -36,6 +36,7 @@ struct RenderCliOptions {
   std::string model_matrix, env_rotation;
   std::vector<std::string> materials;
   bool no_peaks = false;
+  bool bin_depth = false;
   std::string device = "gpu";
   bool json = false;
   bool composite_only = false;
@@ -81,6 +82,7 @@ int RunRender(const RenderCliOptions& o) {
   options.supersample = o.supersample;
   options.supersample_contrast = o.supersample_contrast;
   options.peak_cones = !o.no_peaks;
+  options.depth_per_lobe = !o.bin_depth;
   options.read_layers = !o.composite_only;
   options.shade_lanes = o.shade_lanes;
   if (o.composite_only && !o.layers.empty())
@@ -214,6 +216,7 @@ int RunRender(const RenderCliOptions& o) {
           {"voxels", o.voxels},
           {"supersample", o.supersample},
           {"shade_lanes", o.shade_lanes},
+          {"depth_per_lobe", !o.bin_depth},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
           {"ground_pixels_occluded", c.ground_pixels},
@@ -280,6 +283,8 @@ CommandFn AddRender(CLI::App* sub) {
                   "world_from_env rotation, 9 numbers row-major (default: identity)");
   sub->add_option("--background", o->background, "Composite over this image (of the output size) instead of --env");
   sub->add_flag("--no-peaks", o->no_peaks, "No peak detection and no extra cone per peak light");
+  sub->add_flag("--bin-depth", o->bin_depth,
+                "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");

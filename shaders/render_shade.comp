@@ -383,14 +383,18 @@ int maxLevelFor(float lambda, float share) {
 }
 
 // Σ over the lobe's lighting SGs: the constant, the overlapping SRBFs, and the peaks when they
-// have no cone of their own. A GGX tail (tail_share > 0, material::Lobe::tail_share) stops at
-// the deepest level it needs (the lists are sorted by global index, so by level).
+// have no cone of their own. A GGX tail (tail_share > 0, material::Lobe::tail_share), and with
+// uLobeDepth every lobe, stops at the deepest level it needs (the lists are sorted by global
+// index, so by level; a bin's list goes as deep as the sharpest lobe it serves).
+uniform int uLobeDepth;  // RenderOptions::depth_per_lobe
 void shadeLobe(vec3 lobe_axis, float lobe_lambda, float tail_share, in ConeSet set, inout vec3 shaded,
                inout vec3 unshadowed, inout uvec4 count) {
   if (uConstant != vec3(0.0))
     addLight(lobe_axis, lobe_lambda, vec3(0, 1, 0), 0.0, uConstant, set, shaded, unshadowed, count);
-  // lighting::GlobalSrbfIndex(d + 1, 0): the first SRBF below the tail's deepest level d.
-  int end = tail_share > 0.0 ? 4 * ((1 << (2 * (maxLevelFor(lobe_lambda, tail_share) + 1))) - 1) : 0x7fffffff;
+  // lighting::GlobalSrbfIndex(d + 1, 0): the first SRBF below the lobe's deepest level d.
+  int end = tail_share > 0.0 || uLobeDepth != 0
+                ? 4 * ((1 << (2 * (maxLevelFor(lobe_lambda, tail_share > 0.0 ? tail_share : 1.0) + 1))) - 1)
+                : 0x7fffffff;
   ivec2 range = overlapRange(lobe_axis, lobe_lambda);
   for (int k = range.x; k < range.y; ++k) {
     if (binSrbfs[k] >= end) break;

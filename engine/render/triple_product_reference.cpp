@@ -155,9 +155,12 @@ void ShadeLobe(const material::Lobe& lobe, const ConeSet& set, const ReferenceIn
   if (L.constant != glm::vec3(0))
     AddLight(lobe, {{0, 1, 0}, 0.0, L.constant}, set, lobe_share, shaded, unshadowed, count);
   if (in.bins && !L.srbfs.empty()) {
-    // The lists are sorted by global index, so by level: a tail stops below its deepest level.
-    const int end = tail ? lighting::GlobalSrbfIndex(in.bins->MaxLevel(lobe.sg.lambda, lobe.tail_share) + 1, 0)
-                         : std::numeric_limits<int>::max();
+    // The lists are sorted by global index, so by level: a tail (and with depth_per_lobe every
+    // lobe) stops below its deepest level.
+    const int end =
+        tail || in.options.depth_per_lobe
+            ? lighting::GlobalSrbfIndex(in.bins->MaxLevel(lobe.sg.lambda, tail ? lobe.tail_share : 1.0) + 1, 0)
+            : std::numeric_limits<int>::max();
     for (int g : in.bins->Query(L.env_from_world * lobe.sg.axis, lobe.sg.lambda)) {
       if (g >= end) break;
       const auto& s = L.srbfs[static_cast<std::size_t>(g)];

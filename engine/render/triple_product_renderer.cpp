@@ -1000,7 +1000,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       for (int s = 0; s < options_.lighting_levels; ++s)
         level_lambda[static_cast<std::size_t>(s)] = static_cast<float>(sphere::Healpix(s).Lambda());
       glProgramUniform1fv(sp.id(), sp.Uniform("uLevelLambda"), 6, level_lambda.data());
-      sp.Set("uMinRetention", static_cast<float>(options_.overlap_min_retention));
+      sp.Set("uMinRetention", static_cast<float>(options_.overlap_min_retention))
+          .Set("uLobeDepth", options_.depth_per_lobe ? 1 : 0);
     }
     SetGroundPeakUniforms(sp, im.lighting, options_.peak_cones);
     SetConeTraceUniforms(sp, im.spec, geometry, options_.trace);

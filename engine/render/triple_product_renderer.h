@@ -124,6 +124,10 @@ struct RenderOptions {
   visibility::ConeSubsampleOptions cones;  // `rings` is taken from cone_rings
   visibility::ConeTraceOptions trace;
   double overlap_min_retention = 1.0 / 13;  // overlap bins' depth rule
+  // Each lobe lit only by the lighting levels the depth rule gives its own λ
+  // (lighting::OverlapBins::MaxLevel), not by every level of its bin's list, which goes as deep
+  // as the sharpest lobe the bin serves (bin λ 32 serves up to 128 and lists level 4: 579 SGs).
+  bool depth_per_lobe = true;
   // Car cones start this many level-0 voxels off the surface along its normal (beside
   // trace.start_offset_voxels along the cone): a conservative voxelization marks the surface's
   // own voxels and their neighbours, and a wide cone near the horizon would otherwise see them

@@ -239,6 +239,33 @@ TEST_F(TripleProductRendererGL, GpuMatchesCpuReference) {
 
 // The anisotropic split and the cosine as an SG (material::LobeOptions) in render_shade.comp
 // against the CPU reference, which builds its lobes with material::AppendLobes itself.
+// RenderOptions::depth_per_lobe: a bin's list goes as deep as the sharpest lobe it serves; each
+// lobe taking only the levels the depth rule gives its own λ drops SGs it cannot show.
+TEST_F(TripleProductRendererGL, DepthPerLobeDropsTheLevelsALobeCannotShow) {
+  RenderResult result[2][2];  // [depth_per_lobe][gpu]
+  for (bool depth : {false, true}) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.lighting_levels = 5;
+    o.depth_per_lobe = depth;
+    TripleProductRenderer r(SphereAndBox(), glm::dmat4(1.0), o);
+    r.SetLighting(SunnySky(5));
+    result[depth][1] = r.Render(View(), ShadeDevice::kGpu);
+    result[depth][0] = r.Render(View(), ShadeDevice::kCpu);
+  }
+  const RenderCounts &off = result[0][1].counts, &on = result[1][1].counts;
+  const Diff change = Compare(result[1][1].car, result[0][1].car, result[1][1].car_alpha);
+  std::printf(
+      "SGs per car pixel: %.1f with every listed level, %.1f with each lobe's own (CPU %.1f); car mean %.4f "
+      "p99 %.4f rel apart\n",
+      off.sgs_per_car_pixel, on.sgs_per_car_pixel, result[1][0].counts.sgs_per_car_pixel, change.mean_rel,
+      change.p99_rel);
+  EXPECT_LT(on.sgs_per_car_pixel, 0.9 * off.sgs_per_car_pixel);
+  EXPECT_NEAR(on.sgs_per_car_pixel, result[1][0].counts.sgs_per_car_pixel, 0.005 * on.sgs_per_car_pixel);
+  EXPECT_NEAR(off.sgs_per_car_pixel, result[0][0].counts.sgs_per_car_pixel, 0.005 * off.sgs_per_car_pixel);
+  EXPECT_LT(change.mean_rel, 0.01);
+}
+
 TEST_F(TripleProductRendererGL, GpuMatchesCpuReferenceForEveryLobeMode) {
   for (const auto warp : {material::WarpMode::kIsotropic, material::WarpMode::kAnisotropicSplit})
     for (const auto cosine : {material::CosineTerm::kAtLobeAxis, material::CosineTerm::kAsSg}) {
