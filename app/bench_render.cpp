@@ -54,8 +54,9 @@ struct BenchRenderOptions {
   bool lobe_modes = true;     // also the four warp × cosine modes at the default configuration
   bool hd_row = true;         // a 1280×720 row (shade ms)
   bool ground_bounce = true;  // the media maps' lower half = Cycles' catcher seen from the car
-  // The SG rows' lighting lists (RenderOptions::depth_per_lobe), for A/B runs.
+  // The SG rows' lighting lists (RenderOptions::depth_per_lobe, overlap_cutoff), for A/B runs.
   bool depth_per_lobe = render::RenderOptions{}.depth_per_lobe;
+  double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
 };
@@ -676,9 +677,12 @@ int RunBenchRender(BenchRenderOptions o) {
   if (refs.empty()) throw UsageError("bench render", "no reference to run");
 
   g_row_defaults.depth_per_lobe = o.depth_per_lobe;
+  g_row_defaults.overlap_cutoff = o.overlap_cutoff;
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   if (!o.depth_per_lobe) machine += "; --bin-depth";
+  if (o.overlap_cutoff != render::RenderOptions{}.overlap_cutoff)
+    machine += "; --overlap-cutoff " + std::to_string(o.overlap_cutoff);
   // One-at-a-time around the default: every level count, cone count and resolution once.
   std::vector<std::array<int, 3>> configs;
   for (int l : o.levels) configs.push_back({l, kDefaultCones, kDefaultVoxels});
@@ -760,6 +764,8 @@ CommandFn AddBenchRender(CLI::App* sub) {
                 "Light the media references from their maps' lower half, not from Cycles' catcher plane");
   sub->add_flag("!--bin-depth", o->depth_per_lobe,
                 "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
+  sub->add_option("--overlap-cutoff", o->overlap_cutoff, "The overlap bins' cutoff (RenderOptions::overlap_cutoff)")
+      ->check(CLI::Range(1e-6, 0.5));
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchRender(*o); };

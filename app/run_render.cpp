@@ -37,6 +37,7 @@ struct RenderCliOptions {
   std::vector<std::string> materials;
   bool no_peaks = false;
   bool bin_depth = false;
+  double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
   std::string device = "gpu";
   bool json = false;
   bool composite_only = false;
@@ -83,6 +84,7 @@ int RunRender(const RenderCliOptions& o) {
   options.supersample_contrast = o.supersample_contrast;
   options.peak_cones = !o.no_peaks;
   options.depth_per_lobe = !o.bin_depth;
+  options.overlap_cutoff = o.overlap_cutoff;
   options.read_layers = !o.composite_only;
   options.shade_lanes = o.shade_lanes;
   if (o.composite_only && !o.layers.empty())
@@ -217,6 +219,7 @@ int RunRender(const RenderCliOptions& o) {
           {"supersample", o.supersample},
           {"shade_lanes", o.shade_lanes},
           {"depth_per_lobe", !o.bin_depth},
+          {"overlap_cutoff", o.overlap_cutoff},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
           {"ground_pixels_occluded", c.ground_pixels},
@@ -285,6 +288,9 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_flag("--no-peaks", o->no_peaks, "No peak detection and no extra cone per peak light");
   sub->add_flag("--bin-depth", o->bin_depth,
                 "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
+  sub->add_option("--overlap-cutoff", o->overlap_cutoff,
+                  "An SRBF lights a lobe where their product's integral is at least this fraction of its aligned value")
+      ->check(CLI::Range(1e-6, 0.5));
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");

@@ -402,6 +402,7 @@ void RenderOptions::Check() const {
     throw Error("render surface_offset_voxels", "must be in [0, 8]");
   if (!(overlap_min_retention > 0 && overlap_min_retention < 1))
     throw Error("render overlap_min_retention", "must be in (0, 1)");
+  if (!(overlap_cutoff > 0 && overlap_cutoff < 1)) throw Error("render overlap_cutoff", "must be in (0, 1)");
   for (const auto& m : materials)
     if (m.brdfs.empty() || m.brdfs.size() > static_cast<std::size_t>(TripleProductRenderer::kTermsPerMaterial))
       throw Error("render material override", "needs one or two BRDF terms");
@@ -668,6 +669,7 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   lighting::OverlapBinOptions bo;
   bo.lighting_levels = options_.lighting_levels;
   bo.min_retention = options_.overlap_min_retention;
+  bo.cutoff = options_.overlap_cutoff;
   im.bins = std::make_unique<lighting::OverlapBins>(bo);
   std::vector<glm::vec4> levels;
   std::vector<int> begin, srbfs;

@@ -124,6 +124,12 @@ struct RenderOptions {
   visibility::ConeSubsampleOptions cones;  // `rings` is taken from cone_rings
   visibility::ConeTraceOptions trace;
   double overlap_min_retention = 1.0 / 13;  // overlap bins' depth rule
+  // The overlap bins' overlap rule (lighting::OverlapBinOptions::cutoff, whose 1e-3 reproduces
+  // the seed's Table 4.2): an SRBF lights a lobe where their product's integral is at least this
+  // fraction of its value with the axes aligned. 1e-2 drops the demo's SGs per car pixel from 797
+  // to 575 and its 1280×720 shading on the H200 from 22.7 to 19.8 ms, and moves no reference's
+  // mean_rel against Cycles by more than 0.0007 (bench render A/B, docs/benchmarks/h200.md).
+  double overlap_cutoff = 1e-2;
   // Each lobe lit only by the lighting levels the depth rule gives its own λ
   // (lighting::OverlapBins::MaxLevel), not by every level of its bin's list, which goes as deep
   // as the sharpest lobe the bin serves (bin λ 32 serves up to 128 and lists level 4: 579 SGs).

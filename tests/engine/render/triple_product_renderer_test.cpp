@@ -166,6 +166,11 @@ TEST(TripleProductRenderer, OptionsAreChecked) {
     bad.supersample_contrast = c;
     EXPECT_THROW(bad.Check(), Error) << c;
   }
+  for (double c : {0.0, 1.0, std::numeric_limits<double>::quiet_NaN()}) {
+    RenderOptions bad;
+    bad.overlap_cutoff = c;
+    EXPECT_THROW(bad.Check(), Error) << c;
+  }
 }
 
 // Cycles' default pixel filter: Blackman-Harris over 1.5 output pixels, 1 at the pixel's centre,
