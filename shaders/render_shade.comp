@@ -396,12 +396,23 @@ void shadeLobe(vec3 lobe_axis, float lobe_lambda, float tail_share, in ConeSet s
                 ? 4 * ((1 << (2 * (maxLevelFor(lobe_lambda, tail_share > 0.0 ? tail_share : 1.0) + 1))) - 1)
                 : 0x7fffffff;
   ivec2 range = overlapRange(lobe_axis, lobe_lambda);
-  for (int k = range.x; k < range.y; ++k) {
-    if (binSrbfs[k] >= end) break;
-    LightSg g = srbfs[binSrbfs[k]];
-    if (g.amplitude.xyz == vec3(0.0)) continue;
-    addLight(lobe_axis, lobe_lambda, g.axis_lambda.xyz, g.axis_lambda.w, g.amplitude.xyz, set, shaded, unshadowed,
-             count);
+  // Software-pipelined: entry k + 1's SG and entry k + 2's index are fetched before entry k is
+  // used, so that the dependent loads overlap the arithmetic instead of stalling it.
+  int k = range.x;
+  int index = k < range.y ? binSrbfs[k] : end;
+  int index_next = k + 1 < range.y ? binSrbfs[k + 1] : end;
+  LightSg next;
+  if (index < end) next = srbfs[index];
+  while (index < end) {
+    LightSg g = next;
+    int index_after = k + 2 < range.y ? binSrbfs[k + 2] : end;
+    if (index_next < end) next = srbfs[index_next];
+    if (g.amplitude.xyz != vec3(0.0))
+      addLight(lobe_axis, lobe_lambda, g.axis_lambda.xyz, g.axis_lambda.w, g.amplitude.xyz, set, shaded, unshadowed,
+               count);
+    index = index_next;
+    index_next = index_after;
+    ++k;
   }
   for (int k = uPeakCones != 0 ? kMaxPeaks : 0; k < uPeakCount; ++k)
       addLight(lobe_axis, lobe_lambda, peaks[k].axis_lambda.xyz, peaks[k].axis_lambda.w, peaks[k].amplitude.xyz, set,
