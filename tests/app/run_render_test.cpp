@@ -91,6 +91,31 @@ TEST(RunRender, CompositeOnlyGivesTheSameImageAndCounts) {
   EXPECT_NE(bad.err.find("--composite-only"), std::string::npos) << bad.err;
 }
 
+// The lighting lists' options: each lobe's own depth and the renderer's overlap cutoff by default,
+// --bin-depth and --overlap-cutoff 0.001 give the bins' full lists back (more SGs per pixel).
+TEST(RunRender, ListOptionsReachTheRenderer) {
+  if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
+  ScratchDir d("run_render_lists");
+  nlohmann::json j[2];
+  for (int k = 0; k < 2; ++k) {
+    const CliRun r =
+        RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 --json --out " +
+                (d.dir / (std::to_string(k) + ".png")).string() + (k ? " --bin-depth --overlap-cutoff 0.001" : ""));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    j[k] = nlohmann::json::parse(r.out).at("counts");
+  }
+  EXPECT_TRUE(j[0].at("depth_per_lobe").get<bool>());
+  EXPECT_FALSE(j[1].at("depth_per_lobe").get<bool>());
+  EXPECT_DOUBLE_EQ(j[0].at("overlap_cutoff").get<double>(), 0.01);
+  EXPECT_DOUBLE_EQ(j[1].at("overlap_cutoff").get<double>(), 0.001);
+  EXPECT_EQ(j[0].at("car_pixels"), j[1].at("car_pixels"));
+  EXPECT_LT(j[0].at("sgs_per_car_pixel").get<double>(), 0.9 * j[1].at("sgs_per_car_pixel").get<double>());
+  const CliRun bad =
+      RunOdvr("render " + kArgs + " --size 64x36 --overlap-cutoff 0 --out " + (d.dir / "x.png").string());
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--overlap-cutoff"), std::string::npos) << bad.err;
+}
+
 TEST(RunRender, CpuAndGpuAgree) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_dev");
