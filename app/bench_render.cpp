@@ -287,13 +287,11 @@ std::string LobeName(const material::LobeOptions& l) {
          (l.cosine == material::CosineTerm::kAtLobeAxis ? "axis" : "sg");
 }
 
-// What every row starts from: RenderOptions' defaults, but for RunBenchRender's list options.
-render::RenderOptions g_row_defaults;
-
-Row RenderRow(const Reference& ref, const std::string& method, int levels, int cones, int voxels, int samples,
-              const material::LobeOptions& lobes, int width = 0, int height = 0, unsigned seed = 1,
-              const std::string& images_dir = "", int supersample = 1, double contrast = 0) {
-  render::RenderOptions o = g_row_defaults;
+// `base`: what every row starts from (RenderOptions' defaults but for the list options).
+Row RenderRow(const render::RenderOptions& base, const Reference& ref, const std::string& method, int levels, int cones,
+              int voxels, int samples, const material::LobeOptions& lobes, int width = 0, int height = 0,
+              unsigned seed = 1, const std::string& images_dir = "", int supersample = 1, double contrast = 0) {
+  render::RenderOptions o = base;
   o.supersample = supersample;
   o.supersample_contrast = contrast;
   o.lighting_levels = levels;
@@ -676,8 +674,9 @@ int RunBenchRender(BenchRenderOptions o) {
                   [&](const Reference& r) { return std::find(o.only.begin(), o.only.end(), r.name) == o.only.end(); });
   if (refs.empty()) throw UsageError("bench render", "no reference to run");
 
-  g_row_defaults.depth_per_lobe = o.depth_per_lobe;
-  g_row_defaults.overlap_cutoff = o.overlap_cutoff;
+  render::RenderOptions base;
+  base.depth_per_lobe = o.depth_per_lobe;
+  base.overlap_cutoff = o.overlap_cutoff;
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   if (!o.depth_per_lobe) machine += "; --bin-depth";
@@ -699,31 +698,32 @@ int RunBenchRender(BenchRenderOptions o) {
   BenchProgress progress("bench render", static_cast<long>(refs.size()) + (o.hd_row ? 1 : 0));
   for (const auto& ref : refs) {
     for (const auto& c : configs)
-      rows.push_back(RenderRow(ref, "sg", c[0], c[1], c[2], 0, modes[0], 0, 0, 1, o.images_dir));
+      rows.push_back(RenderRow(base, ref, "sg", c[0], c[1], c[2], 0, modes[0], 0, 0, 1, o.images_dir));
     for (std::size_t m = 1; m < modes.size(); ++m)
-      rows.push_back(
-          RenderRow(ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[m], 0, 0, 1, o.images_dir));
+      rows.push_back(RenderRow(base, ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[m], 0, 0, 1,
+                               o.images_dir));
     for (const char* method : {"mc", "mc-exact"}) {
       if (method == std::string("mc-exact") && !o.mc_exact) continue;
       for (int v : o.mc_voxels)
         for (int n : o.mc_samples)
-          rows.push_back(RenderRow(ref, method, kDefaultLevels, 1, v, n, modes[0], 0, 0, o.mc_seed, o.images_dir));
+          rows.push_back(
+              RenderRow(base, ref, method, kDefaultLevels, 1, v, n, modes[0], 0, 0, o.mc_seed, o.images_dir));
     }
     for (int k : o.supersample) {
       if (k == 1) continue;
       for (double c : o.supersample_contrast)
-        rows.push_back(RenderRow(ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 0, 0, 1,
+        rows.push_back(RenderRow(base, ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 0, 0, 1,
                                  o.images_dir, k, c));
       for (int n : o.mc_samples)
         if (n >= k * k)
-          rows.push_back(
-              RenderRow(ref, "mc", kDefaultLevels, 1, kDefaultVoxels, n, modes[0], 0, 0, o.mc_seed, o.images_dir, k));
+          rows.push_back(RenderRow(base, ref, "mc", kDefaultLevels, 1, kDefaultVoxels, n, modes[0], 0, 0, o.mc_seed,
+                                   o.images_dir, k));
     }
     progress.Step(ref.name);
   }
   if (o.hd_row) {
     rows.push_back(
-        RenderRow(refs.front(), "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 1280, 720));
+        RenderRow(base, refs.front(), "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 1280, 720));
     progress.Step("1280x720");
   }
   WriteReport(rows, o, machine);
