@@ -12,8 +12,8 @@
 
 // SHADE_LANES (RenderOptions::shade_lanes, 1, 2 or 4) invocations per pixel along z: lane l shades
 // the pixel's lobes l, l + L, …, and lane 0 sums the lanes' radiance, peak integrals and counts
-// from shared memory. One pixel's serial chain (its lobes × cones × SGs) bounded the shading on a
-// GPU (H200: 12.3 ms for 5 493 car pixels at 320×180, 32.5 ms for 87 977 at 1280×720).
+// from shared memory. They pay only where too few pixels fill the GPU (H200: 320×180, 4 lanes
+// 7.4 ms against 12.4; 1280×720, 35.7 against 27.0: docs/benchmarks/h200.md, third run).
 #ifndef SHADE_LANES
 #define SHADE_LANES 1
 #endif

@@ -184,8 +184,9 @@ struct RenderOptions {
   bool read_composite = true;
   // GPU shading: invocations per pixel (1, 2 or 4), each shading every L-th of the pixel's lobes,
   // summed in shared memory (render_shade.comp). The same picture within float rounding; more
-  // lanes shorten a pixel's serial chain, which bounds the shading on a GPU, and add the lanes'
-  // repeated set-up, which costs on a CPU rasterizer.
+  // lanes shorten a pixel's serial chain and add the lanes' repeated set-up and registers. On the
+  // H200 4 lanes shade 320×180 in 7.4 ms against 12.4, but 1280×720 in 35.7 against 27.0 (the GPU
+  // is full there); on llvmpipe they only cost.
   int shade_lanes = 1;
   void Check() const;  // throws odvr::Error naming the field
 };
