@@ -185,9 +185,14 @@ LiveFrame LiveScene::Render(int width, int height, const AugmentedView& view) {
     im.set_index = set->index;
     const sphere::EquirectImage& pano = im.stitched.image;
     const cv::Mat lin(pano.height, pano.width, CV_32FC3, im.stitched.image.rgb.data());
-    cv::Mat wrapped;
-    cv::copyMakeBorder(lin, wrapped, 0, 0, 1, 1, cv::BORDER_WRAP);
-    cv::copyMakeBorder(wrapped, im.padded, 1, 1, 0, 0, cv::BORDER_REPLICATE);
+    if (im.renderer) {
+      // The renderer's composite samples it through the camera on the GPU, once uploaded.
+      im.renderer->SetBackgroundEquirect(pano);
+    } else {
+      cv::Mat wrapped;
+      cv::copyMakeBorder(lin, wrapped, 0, 0, 1, 1, cv::BORDER_WRAP);
+      cv::copyMakeBorder(wrapped, im.padded, 1, 1, 0, 0, cv::BORDER_REPLICATE);
+    }
     out.ms.stitch = MsSince(t0);
 
     // Lighting: the new panorama's SG model, in the world's frame (the rig's, unturned).
@@ -234,10 +239,23 @@ LiveFrame LiveScene::Render(int width, int height, const AugmentedView& view) {
     if (out.car_in_front)
       out.car_pixel = {0.5 * width + camera.focal_px() * c.x / c.z, 0.5 * height + camera.focal_px() * c.y / c.z};
   }
-  sphere::EquirectImage background(width, height);
-  {
+  const glm::dmat3 pano_from_car(world_from_car);
+  double composite_ms = 0;
+  if (im.renderer) {
+    // The panorama through the camera, the car (unless hidden) and its shadow over it: all in the
+    // renderer's composite on the GPU, as the augmented player does.
+    im.renderer->SetBackgroundRotation(glm::transpose(pano_from_car));
+    composite_ms = MsSince(t0);
+    t0 = Clock::now();
+    render::RenderResult r = im.renderer->Render(camera, render::ShadeDevice::kGpu, view.draw_car);
+    out.ms.readback = r.ms.readback;
+    out.ms.render = std::max(0.0, MsSince(t0) - r.ms.composite - r.ms.readback);
+    composite_ms += r.ms.composite;
+    out.image = std::move(r.composite);
+    out.car_pixels = view.draw_car ? r.counts.car_pixels : 0;
+  } else {
+    sphere::EquirectImage background(width, height);
     const int pw = im.padded.cols - 2, ph = im.padded.rows - 2;
-    const glm::dmat3 pano_from_car(world_from_car);
     cv::Mat map_x(height, width, CV_32F), map_y(height, width, CV_32F);
     cv::parallel_for_(cv::Range(0, height), [&](const cv::Range& rows) {
       for (int y = rows.start; y < rows.end; ++y)
@@ -249,19 +267,7 @@ LiveFrame LiveScene::Render(int width, int height, const AugmentedView& view) {
     });
     cv::Mat bg(height, width, CV_32FC3, background.rgb.data());
     cv::remap(im.padded, bg, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  }
-  double composite_ms = MsSince(t0);
-
-  if (im.renderer && view.draw_car) {
-    t0 = Clock::now();
-    im.renderer->SetBackgroundImage(background);
-    render::RenderResult r = im.renderer->Render(camera);
-    out.ms.readback = r.ms.readback;
-    out.ms.render = std::max(0.0, MsSince(t0) - r.ms.composite - r.ms.readback);
-    composite_ms += r.ms.composite;
-    out.image = std::move(r.composite);
-    out.car_pixels = r.counts.car_pixels;
-  } else {
+    composite_ms = MsSince(t0);
     out.image = std::move(background);
   }
   t0 = Clock::now();

@@ -90,8 +90,8 @@ class LiveScene {
   std::string source_description() const;
   const capture::Rig& rig() const;
   const CarController& car() const { return *car_; }
-  // With composite_on_gpu: the last frame's picture when it had the car (LiveFrame::image empty),
-  // linear RGBA32F, rows top first, before the exposure.
+  // With composite_on_gpu and a car model: the last frame's picture (LiveFrame::image empty), the
+  // street with or without the car, linear RGBA32F, rows top first, before the exposure.
   const gl::Texture& composite() const;
 
  private:
