@@ -315,6 +315,14 @@ Row RenderRow(const render::RenderOptions& base, const Reference& ref, const std
     camera.width = width;
     camera.height = height;
   }
+  {
+    // A shader variant is compiled at its first dispatch (llvmpipe: seconds, ~16 s for 19 cones),
+    // which a row that is the first of its variant would time: a small untimed render first.
+    render::PinholeCamera warm = camera;
+    warm.width = 32;
+    warm.height = 18;
+    renderer.Render(warm);
+  }
   render::RenderResult r = renderer.Render(camera);
   Row row;
   row.reference = ref.name;
@@ -624,7 +632,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
         "shaded samples per pixel along each axis (`RenderOptions::supersample`), resolved with Cycles' pixel "
         "filter (Blackman-Harris, 1.5 px), `c`: every sample only where a pixel needs it "
         "(`RenderOptions::supersample_contrast`); MC `samples` are rays per pixel. Times are one "
-     << "render each, on the device named above.\n\n"
+     << "render each, after an untimed 32×18 render that compiles the row's shaders, on the device named "
+        "above.\n\n"
      << "| reference | method | lobes | levels | cones | voxels | samples | k | mean_rel | rel_l1 | bias | ssim | "
         "shadow | shade ms | total ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : rows) {
