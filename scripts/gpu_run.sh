@@ -3,8 +3,10 @@
 # with a GPU driver but without our build dependencies, from the repository root. Each step has
 # its own time limit so that a slow one cannot cost the others; everything lands in OUT_DIR,
 # packed into results.tar.gz at the end, with log.txt beside it.
-#   [PARTS_DIR=DIR] scripts/gpu_run.sh BUNDLE_DIR OUT_DIR [quick|stages]
-# quick: small sizes, to check the bundle itself; stages: per-stage timings of lighting and render.
+#   [PARTS_DIR=DIR] scripts/gpu_run.sh BUNDLE_DIR OUT_DIR [quick|stages|shade]
+# quick: small sizes, to check the bundle itself; stages: per-stage timings of lighting and render;
+# shade: the shading's time, with list options and shader variants (VARIANTS, default BUNDLE_DIR/var:
+# NAME/* files that replace shaders/*; scripts/shade_probes.py writes the probes that leave one part out).
 set -uo pipefail
 bundle=$(cd "${1:?bundle directory}" && pwd)
 out=$(mkdir -p "${2:?output directory}" && cd "$2" && pwd)
@@ -81,6 +83,29 @@ if [ "$quick" = stages ]; then
   step tests_render 150 "$work/engine_tests" --gtest_filter='TripleProductRenderer*GL*:CyclesReference*GL*'
   step light_park 60 "$odvr" bench light --gpu --widths 2048 --max-levels 5 --no-least-squares \
     --repeats 9 --min-time-ms 200 --out "$results/light_park" "$env/park.exr"
+  # The 1280x720 row timed both as the bench renders (read back) and as the window player does.
+  step render_hd 60 "$odvr" bench render --only sunset_glossy --levels 5 --cones 7 --voxels 128 --mc-samples 16 \
+    --no-lobe-modes --no-ground-bounce --out "$results/render_hd"
+elif [ "$quick" = shade ]; then
+  # Where the shading's time goes: 1280x720 renders as the players make them, with the lighting
+  # lists' options, then with each shader variant in VARIANTS/NAME (ODVR_SHADER_DIR).
+  render() { step "render_$1" 60 "$odvr" render --model "$src/media/demo/car.glb" --env "$env/sky.exr" \
+    --repeat 10 --out "$results/render_$1.png" --json "${@:2}"; }
+  render 720p --size 1280x720
+  render 720p_composite --size 1280x720 --composite-only
+  render 320 --size 320x180
+  render 720p_bin_depth --size 1280x720 --composite-only --bin-depth
+  render 720p_cutoff1e-2 --size 1280x720 --composite-only --overlap-cutoff 0.01
+  render 720p_v64_l4 --size 1280x720 --composite-only --voxels 64 --levels 4
+  for v in "${VARIANTS:-$bundle/var}"/*/; do
+    [ -d "$v" ] || continue
+    name=$(basename "$v")
+    step "render_720p_$name" 60 env ODVR_SHADER_DIR="$v" "$odvr" render --model "$src/media/demo/car.glb" \
+      --env "$env/sky.exr" --repeat 10 --out "$results/render_720p_$name.png" --json --size 1280x720 --composite-only
+  done
+  step player 60 "$odvr" bench player --size 1280x720 --frames 30 --out "$results/player.md"
+  step render_hd 60 "$odvr" bench render --only sunset_glossy --levels 5 --cones 7 --voxels 128 --mc-samples 16 \
+    --no-lobe-modes --no-ground-bounce --out "$results/render_hd"
 elif [ "$quick" = quick ]; then
   step tests_engine 300 "$work/engine_tests" --gtest_filter='ContextGL.*:ComputeGL.*'
   step bench_light 300 "$odvr" bench light --gpu --widths 1024 --max-levels 3 --no-least-squares --repeats 1 \
