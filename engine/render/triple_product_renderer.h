@@ -128,7 +128,7 @@ struct RenderOptions {
   // the seed's Table 4.2): an SRBF lights a lobe where their product's integral is at least this
   // fraction of its value with the axes aligned. 1e-2 drops the demo's SGs per car pixel from 797
   // to 575 and its 1280×720 shading on the H200 from 22.7 to 19.8 ms, and moves no reference's
-  // mean_rel against Cycles by more than 0.0007 (bench render A/B, docs/benchmarks/h200.md).
+  // mean_rel against Cycles by more than 0.0007 (docs/benchmarks/render_lists/, h200.md third run).
   double overlap_cutoff = 1e-2;
   // Each lobe lit only by the lighting levels the depth rule gives its own λ
   // (lighting::OverlapBins::MaxLevel), not by every level of its bin's list, which goes as deep
