@@ -57,6 +57,7 @@ struct BenchRenderOptions {
   // The SG rows' lighting lists (RenderOptions::depth_per_lobe, overlap_cutoff), for A/B runs.
   bool depth_per_lobe = render::RenderOptions{}.depth_per_lobe;
   double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
+  int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
 };
@@ -686,11 +687,14 @@ int RunBenchRender(BenchRenderOptions o) {
   render::RenderOptions base;
   base.depth_per_lobe = o.depth_per_lobe;
   base.overlap_cutoff = o.overlap_cutoff;
+  base.ground_lit_map_texels = o.ground_lit_map;
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   if (!o.depth_per_lobe) machine += "; --bin-depth";
   if (o.overlap_cutoff != render::RenderOptions{}.overlap_cutoff)
     machine += "; --overlap-cutoff " + std::to_string(o.overlap_cutoff);
+  if (o.ground_lit_map != render::RenderOptions{}.ground_lit_map_texels)
+    machine += "; --ground-lit-map " + std::to_string(o.ground_lit_map);
   // One-at-a-time around the default: every level count, cone count and resolution once.
   std::vector<std::array<int, 3>> configs;
   for (int l : o.levels) configs.push_back({l, kDefaultCones, kDefaultVoxels});
@@ -775,6 +779,10 @@ CommandFn AddBenchRender(CLI::App* sub) {
                 "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
   sub->add_option("--overlap-cutoff", o->overlap_cutoff, "The overlap bins' cutoff (RenderOptions::overlap_cutoff)")
       ->check(CLI::Range(1e-6, 0.5));
+  sub->add_option("--ground-lit-map", o->ground_lit_map,
+                  "The ground's lit-fraction grid's texels per side at most (RenderOptions::ground_lit_map_texels; 0: "
+                  "traced per cone)")
+      ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchRender(*o); };

@@ -38,6 +38,7 @@ struct RenderCliOptions {
   bool no_peaks = false;
   bool bin_depth = false;
   double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
+  int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
   std::string device = "gpu";
   bool json = false;
   bool composite_only = false;
@@ -85,6 +86,7 @@ int RunRender(const RenderCliOptions& o) {
   options.peak_cones = !o.no_peaks;
   options.depth_per_lobe = !o.bin_depth;
   options.overlap_cutoff = o.overlap_cutoff;
+  options.ground_lit_map_texels = o.ground_lit_map;
   options.read_layers = !o.composite_only;
   options.shade_lanes = o.shade_lanes;
   if (o.composite_only && !o.layers.empty())
@@ -220,6 +222,7 @@ int RunRender(const RenderCliOptions& o) {
           {"shade_lanes", o.shade_lanes},
           {"depth_per_lobe", !o.bin_depth},
           {"overlap_cutoff", o.overlap_cutoff},
+          {"ground_lit_map_texels", o.ground_lit_map},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
           {"ground_pixels_occluded", c.ground_pixels},
@@ -291,6 +294,10 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_option("--overlap-cutoff", o->overlap_cutoff,
                   "An SRBF lights a lobe where their product's integral is at least this fraction of its aligned value")
       ->check(CLI::Range(1e-6, 0.5));
+  sub->add_option("--ground-lit-map", o->ground_lit_map,
+                  "Texels per side at most of the grid the ground's lit fraction is read from under the car "
+                  "(0: traced from every point a cone meets the ground)")
+      ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");

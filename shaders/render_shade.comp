@@ -94,7 +94,7 @@ uniform vec3 uGroundRadiance;  // detail::PreparedLighting::GroundRadiance
 // once per render: entries 0 … kMaxCones − 1 C_i, kMaxCones the unshadowed Σ_j a_j ∫P_j, then
 // per peak with its own cone a_k ∫P_k. A ground pixel then costs its cones, not cones × SGs.
 layout(std430, binding = 11) buffer GroundTable { vec4 groundTable[]; };
-uniform int uGroundTablePass;
+uniform int uGroundTablePass;  // 1: this table; 2: the ground's lit-fraction grid (below)
 
 uniform int uGroundPeakCount;
 uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
@@ -112,13 +112,35 @@ float groundLitFraction(vec3 q) {
   return lit + max(rest, 0.0) * traceCone(q, vec3(0, 1, 0), uGroundLitHalfAngle);
 }
 
+// RenderOptions::ground_lit_map_texels: groundLitFraction at the texel centres of a grid over the
+// ground (detail::GroundLitMapLayout), written by the pass uGroundTablePass == 2 before the
+// shading reads it; uGroundLitMapSize.x == 0: no grid, every cone traces from its ground point.
+layout(std430, binding = 12) buffer GroundLitMap { float groundLitMap[]; };
+uniform ivec2 uGroundLitMapSize;
+uniform vec2 uGroundLitMapOrigin;  // xz of texel (0, 0)'s centre
+uniform float uGroundLitMapSpacing;
+
+// detail::SampleGroundLitMap: bilinear between texel centres, 1 outside the grid.
+float groundLitMapAt(vec2 xz) {
+  vec2 f = (xz - uGroundLitMapOrigin) / uGroundLitMapSpacing;
+  if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(uGroundLitMapSize.x - 1) && f.y < float(uGroundLitMapSize.y - 1)))
+    return 1.0;
+  ivec2 i = ivec2(f);
+  vec2 t = f - vec2(i);
+  int e = i.y * uGroundLitMapSize.x + i.x;
+  return mix(mix(groundLitMap[e], groundLitMap[e + 1], t.x),
+             mix(groundLitMap[e + uGroundLitMapSize.x], groundLitMap[e + uGroundLitMapSize.x + 1], t.x), t.y);
+}
+
 // RenderOptions::ground_shadows_bounce: light from below the horizon stands for the ground's
 // bounce, which is darker where the car shadows the ground. A cone from p along dir meets the
-// ground at q; the lit fraction there is one cone straight up from q.
+// ground at q; the lit fraction there is one cone straight up from q (and the traced peaks'),
+// read from the grid when there is one.
 float groundLit(vec3 p, vec3 dir) {
   if (uGroundShadowsBounce == 0 || dir.y >= 0.0 || p.y <= 0.0) return 1.0;
   vec3 q = p - (p.y / dir.y) * dir;
   if (abs(q.x - uGroundCenter.x) > uGroundHalfSize || abs(q.z - uGroundCenter.y) > uGroundHalfSize) return 1.0;
+  if (uGroundLitMapSize.x > 0) return groundLitMapAt(q.xz);
   return groundLitFraction(vec3(q.x, 0.0, q.z));
 }
 
@@ -559,8 +581,16 @@ void main() {
   gCosineNormal = vec3(0.0, 1.0, 0.0);
   gRadiance = vec3(0.0);
   for (int k = 0; k < kMaxPeaks; ++k) gPeakSum[k] = vec3(0.0);
-  if (uGroundTablePass != 0) {  // one group, all of it here: no barrier below is reached
+  if (uGroundTablePass == 1) {  // one group, all of it here: no barrier below is reached
     buildGroundTable();
+    return;
+  }
+  if (uGroundTablePass == 2) {  // a texel per invocation of lane 0; every invocation returns here
+    ivec2 texel = ivec2(gl_GlobalInvocationID.xy);
+    if (lane == 0 && texel.x < uGroundLitMapSize.x && texel.y < uGroundLitMapSize.y) {
+      vec2 xz = uGroundLitMapOrigin + vec2(texel) * uGroundLitMapSpacing;
+      groundLitMap[texel.y * uGroundLitMapSize.x + texel.x] = groundLitFraction(vec3(xz.x, 0.0, xz.y));
+    }
     return;
   }
   vec4 car = vec4(0.0);

@@ -11,6 +11,7 @@
 #include "engine/gl/objects.h"
 #include "engine/lighting/overlap_bins.h"
 #include "engine/render/triple_product_renderer.h"
+#include "engine/visibility/voxel_grid.h"
 
 namespace odvr::render::detail {
 
@@ -71,6 +72,23 @@ double GroundLitFraction(const glm::dvec3& q, const PreparedLighting& l, bool pe
   return lit + std::max(rest, 0.0) * trace(q, glm::dvec3(0, 1, 0), up_half_angle);
 }
 
+// RenderOptions::ground_lit_map_texels: GroundLitFraction on a grid over the ground, read
+// bilinearly between texel centres. A trace sees the voxels only where its axis enters the voxel
+// cube, so the fraction is exactly 1 outside the cube's footprint (the up cone) and outside the
+// cube's shadow along each traced peak's axis: the grid covers the rectangle around those, within
+// the catcher, with one texel beyond it on each side (1 there, so the reads fade to 1 at its edge).
+struct GroundLitMapLayout {
+  glm::dvec2 origin{0};       // xz of texel (0, 0)'s centre
+  double spacing = 0;         // metres between texel centres: the voxel size, or more for a long shadow
+  int width = 0, height = 0;  // texels along x and z; 0: no grid, every point lit
+  std::size_t texels() const { return static_cast<std::size_t>(width) * static_cast<std::size_t>(height); }
+};
+GroundLitMapLayout GroundLitMapLayoutFor(const visibility::VoxelGridSpec& spec, const PreparedLighting& l,
+                                         bool peak_cones, const glm::dvec2& ground_centre, double ground_half_size,
+                                         int max_texels);
+// Bilinear between the texels' centres (texel (i, j) at texels[j · width + i]); 1 outside the grid.
+double SampleGroundLitMap(const GroundLitMapLayout& layout, const std::vector<float>& texels, double x, double z);
+
 // Per material: the BRDF terms of an override, or empty for the glTF metallic-roughness that the
 // G-buffer holds.
 using MaterialTerms = std::vector<std::vector<material::Brdf>>;
@@ -98,6 +116,10 @@ struct ReferenceInputs {
   const visibility::VoxelGrid* grid = nullptr;  // nullptr: nothing occludes
   RenderOptions options;
   glm::dvec2 ground_centre{0, 0};  // xz
+  // Filled by ShadeReference (RenderOptions::ground_lit_map_texels): the ground's lit fraction at
+  // each texel of its grid, as render_shade.comp's pass uGroundTablePass == 2 writes it.
+  GroundLitMapLayout ground_lit_map;
+  std::vector<float> ground_lit_texels;
 };
 
 // The shading stage on the CPU (multithreaded): fills result->car, car_alpha, shadow,

@@ -26,6 +26,8 @@ struct ConeSet {
   bool ground_shadowed = false;  // some cone meets the ground where the car shadows it
 };
 
+double GroundLitFractionAt(double x, double z, const ReferenceInputs& in);
+
 // render_shade.comp's groundLit: the ground's lit fraction where a cone from p along dir meets it.
 double GroundLit(const glm::dvec3& p, const glm::dvec3& dir, const ReferenceInputs& in) {
   if (!in.options.ground || !in.options.ground_shadows_bounce || dir.y >= 0 || p.y <= 0) return 1.0;
@@ -33,11 +35,35 @@ double GroundLit(const glm::dvec3& p, const glm::dvec3& dir, const ReferenceInpu
   if (std::abs(q.x - in.ground_centre.x) > in.options.ground_half_size ||
       std::abs(q.z - in.ground_centre.y) > in.options.ground_half_size)
     return 1.0;
+  if (in.ground_lit_map.width > 0) return SampleGroundLitMap(in.ground_lit_map, in.ground_lit_texels, q.x, q.z);
+  return GroundLitFractionAt(q.x, q.z, in);
+}
+
+double GroundLitFractionAt(double x, double z, const ReferenceInputs& in) {
   return GroundLitFraction(
-      glm::dvec3(q.x, 0, q.z), *in.lighting, in.options.peak_cones, kGroundLitHalfAngle, visibility::kMaxConeHalfAngle,
+      glm::dvec3(x, 0, z), *in.lighting, in.options.peak_cones, kGroundLitHalfAngle, visibility::kMaxConeHalfAngle,
       [&](const glm::dvec3& o, const glm::dvec3& axis, double a) {
         return in.grid->TraceCone({glm::vec3(o), glm::vec3(axis), static_cast<float>(a)}, in.options.trace);
       });
+}
+
+// RenderOptions::ground_lit_map_texels: the grid render_shade.comp's pass uGroundTablePass == 2
+// fills, traced at each texel's centre.
+void FillGroundLitMap(ReferenceInputs* in, ThreadPool* pool) {
+  in->ground_lit_map = {};
+  in->ground_lit_texels.clear();
+  if (!in->grid || !in->options.ground || !in->options.ground_shadows_bounce) return;
+  in->ground_lit_map = GroundLitMapLayoutFor(in->grid->spec(), *in->lighting, in->options.peak_cones, in->ground_centre,
+                                             in->options.ground_half_size, in->options.ground_lit_map_texels);
+  const GroundLitMapLayout& m = in->ground_lit_map;
+  in->ground_lit_texels.assign(m.texels(), 1.f);
+  pool->ParallelFor(static_cast<long>(m.texels()), [&](long begin, long end) {
+    for (long t = begin; t < end; ++t) {
+      const double x = m.origin.x + static_cast<double>(t % m.width) * m.spacing;
+      const double z = m.origin.y + static_cast<double>(t / m.width) * m.spacing;
+      in->ground_lit_texels[static_cast<std::size_t>(t)] = static_cast<float>(GroundLitFractionAt(x, z, *in));
+    }
+  });
 }
 
 // render_shade.comp's coneCosineRatios: how much of a clamped-cosine lobe a cone holds against
@@ -207,7 +233,10 @@ double HalfValueAngle(double lambda) {
   return lambda > std::log(2.0) / 2 ? lighting::HalfValueAngleForLambda(lambda) : 3.14159265358979323846;
 }
 
-void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector<PixelCounts>* counts) {
+void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vector<PixelCounts>* counts) {
+  static ThreadPool pool;
+  ReferenceInputs in = given;
+  FillGroundLitMap(&in, &pool);
   const GBuffer& g = *in.gbuffer;
   const int w = g.width, h = g.height;
   result->car = sphere::EquirectImage(w, h, 0.f);
@@ -216,7 +245,6 @@ void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector
   result->ground_mask.assign(static_cast<std::size_t>(w) * h, 0.f);
   counts->assign(static_cast<std::size_t>(w) * h, {});
   const int material_count = static_cast<int>(in.materials->size());
-  static ThreadPool pool;
   pool.ParallelFor(
       static_cast<long>(w) * h,
       [&](long begin, long end) {

@@ -324,6 +324,57 @@ CountSums SumCountsOnGpu(gl::Program& program, gl::Buffer& counts, gl::Buffer* p
   return s;
 }
 
+GroundLitMapLayout GroundLitMapLayoutFor(const visibility::VoxelGridSpec& spec, const PreparedLighting& l,
+                                         bool peak_cones, const glm::dvec2& ground_centre, double ground_half_size,
+                                         int max_texels) {
+  GroundLitMapLayout layout;
+  if (max_texels <= 0) return layout;
+  const glm::dvec2 square_lo = ground_centre - ground_half_size, square_hi = ground_centre + ground_half_size;
+  const glm::dvec3 lo = spec.origin, hi = spec.origin + spec.side();
+  // The up cone: the cube's footprint.
+  glm::dvec2 r_lo(lo.x, lo.z), r_hi(hi.x, hi.z);
+  for (std::size_t k = 0; peak_cones && k < l.ground_peak_share.size(); ++k) {
+    if (l.ground_peak_share[k] <= 0) continue;
+    const glm::dvec3 a = glm::normalize(l.peaks[k].axis);
+    if (!(a.y > 1e-6)) {  // along or under the horizon: its shadow may reach anywhere
+      r_lo = square_lo;
+      r_hi = square_hi;
+      break;
+    }
+    // The cube's shadow along the axis: its corners moved down the axis to the ground (a corner
+    // under the ground lands on the sun's side, which only widens the rectangle).
+    for (int c = 0; c < 8; ++c) {
+      const glm::dvec3 corner((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+      const glm::dvec3 q = corner - (corner.y / a.y) * a;
+      r_lo = glm::min(r_lo, glm::dvec2(q.x, q.z));
+      r_hi = glm::max(r_hi, glm::dvec2(q.x, q.z));
+    }
+  }
+  r_lo = glm::max(r_lo, square_lo);
+  r_hi = glm::min(r_hi, square_hi);
+  if (!(r_hi.x > r_lo.x && r_hi.y > r_lo.y)) return layout;  // the cube's shadows miss the catcher
+  const glm::dvec2 extent = r_hi - r_lo;
+  // Two texels beyond the rectangle's interior span: one on each side.
+  layout.spacing = std::max(spec.voxel_size, std::max(extent.x, extent.y) / std::max(1, max_texels - 3));
+  layout.width = static_cast<int>(std::ceil(extent.x / layout.spacing)) + 3;
+  layout.height = static_cast<int>(std::ceil(extent.y / layout.spacing)) + 3;
+  layout.origin = r_lo - layout.spacing;
+  return layout;
+}
+
+double SampleGroundLitMap(const GroundLitMapLayout& layout, const std::vector<float>& texels, double x, double z) {
+  if (layout.width <= 0) return 1.0;
+  const double fx = (x - layout.origin.x) / layout.spacing, fz = (z - layout.origin.y) / layout.spacing;
+  if (!(fx >= 0 && fz >= 0 && fx < layout.width - 1 && fz < layout.height - 1)) return 1.0;
+  const int i = static_cast<int>(fx), j = static_cast<int>(fz);
+  const double tx = fx - i, tz = fz - j;
+  const auto at = [&](int di, int dj) {
+    return static_cast<double>(texels[static_cast<std::size_t>(j + dj) * static_cast<std::size_t>(layout.width) +
+                                      static_cast<std::size_t>(i + di)]);
+  };
+  return (1 - tz) * ((1 - tx) * at(0, 0) + tx * at(1, 0)) + tz * ((1 - tx) * at(0, 1) + tx * at(1, 1));
+}
+
 }  // namespace detail
 
 // --- camera, overrides, options -----------------------------------------------------------------
@@ -403,6 +454,8 @@ void RenderOptions::Check() const {
   if (!(overlap_min_retention > 0 && overlap_min_retention < 1))
     throw Error("render overlap_min_retention", "must be in (0, 1)");
   if (!(overlap_cutoff > 0 && overlap_cutoff < 1)) throw Error("render overlap_cutoff", "must be in (0, 1)");
+  if (ground_lit_map_texels != 0 && (ground_lit_map_texels < 8 || ground_lit_map_texels > 1024))
+    throw Error("render ground_lit_map_texels", "must be 0 (trace per cone) or in [8, 1024]");
   for (const auto& m : materials)
     if (m.brdfs.empty() || m.brdfs.size() > static_cast<std::size_t>(TripleProductRenderer::kTermsPerMaterial))
       throw Error("render material override", "needs one or two BRDF terms");
@@ -480,9 +533,10 @@ struct TripleProductRenderer::Impl {
   // render_shade.comp's GroundTable: per cone of the ground's lobe, per traced peak, and the
   // unshadowed sum, the lighting the ground sees through it (one vec4 each).
   gl::Buffer ground_table{gl::NoCreate};
-  gl::Buffer count_totals{gl::NoCreate};  // RenderOptions::read_layers off: render_counts.comp's group sums
-  gl::ReadbackBuffer readback;            // the layers and counts on their way to the CPU
-  std::array<GLuint, 5> stage_queries{};  // GL timestamps between the GPU path's stages
+  gl::Buffer ground_lit_map{gl::NoCreate};  // render_shade.comp's GroundLitMap (RenderOptions::ground_lit_map_texels)
+  gl::Buffer count_totals{gl::NoCreate};    // RenderOptions::read_layers off: render_counts.comp's group sums
+  gl::ReadbackBuffer readback;              // the layers and counts on their way to the CPU
+  std::array<GLuint, 5> stage_queries{};    // GL timestamps between the GPU path's stages
 
   Impl() = default;
   Impl(const Impl&) = delete;
@@ -1083,6 +1137,27 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       if (options_.ground) {
         sp.Set("uGroundTablePass", 1).Use();
         glDispatchCompute(1, 1, 1);
+        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      }
+      const detail::GroundLitMapLayout map =
+          options_.ground && options_.ground_shadows_bounce && geometry
+              ? detail::GroundLitMapLayoutFor(im.spec, im.lighting, options_.peak_cones, ground_centre,
+                                              options_.ground_half_size, options_.ground_lit_map_texels)
+              : detail::GroundLitMapLayout{};
+      const std::size_t map_bytes = std::max<std::size_t>(map.texels(), 1) * sizeof(float);
+      if (!im.ground_lit_map || im.ground_lit_map.size() < map_bytes) {
+        im.ground_lit_map = gl::Buffer();
+        im.ground_lit_map.Allocate(map_bytes);
+      }
+      im.ground_lit_map.BindBase(GL_SHADER_STORAGE_BUFFER, 12);
+      glProgramUniform2i(sp.id(), sp.Uniform("uGroundLitMapSize"), map.width, map.height);
+      sp.Set("uGroundLitMapOrigin", static_cast<float>(map.origin.x), static_cast<float>(map.origin.y))
+          .Set("uGroundLitMapSpacing", static_cast<float>(map.spacing));
+      if (map.width > 0) {
+        sp.Set("uGroundTablePass", 2)
+            .Use()
+            .DispatchCovering(static_cast<unsigned>(map.width), static_cast<unsigned>(map.height),
+                              static_cast<unsigned>(options_.shade_lanes));
         glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
       }
       sp.Set("uGroundTablePass", 0).Set("uOutWidth", w).Set("uFactor", k).Set("uAdaptivePass", 0);

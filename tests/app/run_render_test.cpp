@@ -92,15 +92,16 @@ TEST(RunRender, CompositeOnlyGivesTheSameImageAndCounts) {
 }
 
 // The lighting lists' options: each lobe's own depth and the renderer's overlap cutoff by default,
-// --bin-depth and --overlap-cutoff 0.001 give the bins' full lists back (more SGs per pixel).
+// --bin-depth and --overlap-cutoff 0.001 give the bins' full lists back (more SGs per pixel);
+// --ground-lit-map 0 traces the ground's lit fraction per cone again.
 TEST(RunRender, ListOptionsReachTheRenderer) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_lists");
   nlohmann::json j[2];
   for (int k = 0; k < 2; ++k) {
-    const CliRun r =
-        RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 --json --out " +
-                (d.dir / (std::to_string(k) + ".png")).string() + (k ? " --bin-depth --overlap-cutoff 0.001" : ""));
+    const CliRun r = RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 --json --out " +
+                             (d.dir / (std::to_string(k) + ".png")).string() +
+                             (k ? " --bin-depth --overlap-cutoff 0.001 --ground-lit-map 0" : ""));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     j[k] = nlohmann::json::parse(r.out).at("counts");
   }
@@ -108,12 +109,18 @@ TEST(RunRender, ListOptionsReachTheRenderer) {
   EXPECT_FALSE(j[1].at("depth_per_lobe").get<bool>());
   EXPECT_DOUBLE_EQ(j[0].at("overlap_cutoff").get<double>(), 0.01);
   EXPECT_DOUBLE_EQ(j[1].at("overlap_cutoff").get<double>(), 0.001);
+  EXPECT_EQ(j[0].at("ground_lit_map_texels").get<int>(), 128);
+  EXPECT_EQ(j[1].at("ground_lit_map_texels").get<int>(), 0);
   EXPECT_EQ(j[0].at("car_pixels"), j[1].at("car_pixels"));
   EXPECT_LT(j[0].at("sgs_per_car_pixel").get<double>(), 0.9 * j[1].at("sgs_per_car_pixel").get<double>());
   const CliRun bad =
       RunOdvr("render " + kArgs + " --size 64x36 --overlap-cutoff 0 --out " + (d.dir / "x.png").string());
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("--overlap-cutoff"), std::string::npos) << bad.err;
+  const CliRun bad_grid =
+      RunOdvr("render " + kArgs + " --size 64x36 --ground-lit-map 4 --out " + (d.dir / "x.png").string());
+  EXPECT_NE(bad_grid.exit_code, 0);
+  EXPECT_NE(bad_grid.err.find("--ground-lit-map"), std::string::npos) << bad_grid.err;
 }
 
 TEST(RunRender, CpuAndGpuAgree) {

@@ -26,6 +26,7 @@
 #include "engine/sphere/equirect.h"
 #include "tests/engine/gl/gl_test_context.h"
 #include "tests/engine/render/render_test_scenes.h"
+#include "tests/engine/visibility/test_meshes.h"
 
 namespace odvr::render {
 namespace {
@@ -966,6 +967,113 @@ TEST_F(TripleProductRendererGL, CarsShadowTakesTheGroundsRadianceOffItsBounce) {
   const Diff d = Compare(broad_image.car, r_on.Render(cam, ShadeDevice::kCpu).car, broad_image.car_alpha);
   EXPECT_LT(d.mean_rel, 0.01);
   EXPECT_LT(d.p99_rel, 0.05);
+}
+
+// RenderOptions::ground_lit_map_texels: the ground's lit fraction read from a grid stands for
+// the traces it replaces. A box 1.2 m tall under a sun at 35° (a traced peak with 60 % of the
+// ground's irradiance): outside the grid every trace sees nothing (the layout's claim, which lets
+// the shader skip them), inside the bilinear read is close to the trace at the same point, and a
+// sun on the horizon widens the grid to the whole catcher.
+TEST(GroundLitMap, StandsForTheTracesItReplaces) {
+  const auto spec = visibility::VoxelGridSpec::Covering({-2, 0.2, -1}, {2, 1.4, 1}, 64);
+  visibility::VoxelGrid grid(spec);
+  grid.Voxelize(odvr::testing::BoxMesh({-2.f, 0.2f, -1.f}, {2.f, 1.4f, 1.f}));
+  grid.BuildMips();
+  detail::PreparedLighting l;
+  const double elevation = 35 * 3.14159265358979323846 / 180;
+  l.peaks.push_back(
+      {glm::dvec3(std::cos(elevation) * 0.8, std::sin(elevation), std::cos(elevation) * 0.6), 2000.0, glm::vec3(1.f)});
+  l.ground_peak_share = {0.6};
+  const auto trace = [&](const glm::dvec3& o, const glm::dvec3& axis, double a) {
+    return grid.TraceCone({glm::vec3(o), glm::vec3(axis), static_cast<float>(a)});
+  };
+  const auto lit = [&](double x, double z) {
+    return detail::GroundLitFraction(glm::dvec3(x, 0, z), l, true, kGroundLitHalfAngle, visibility::kMaxConeHalfAngle,
+                                     trace);
+  };
+  const detail::GroundLitMapLayout m = detail::GroundLitMapLayoutFor(spec, l, true, {0, 0}, 30, 128);
+  ASSERT_GT(m.width, 8);
+  ASSERT_LE(std::max(m.width, m.height), 128);
+  std::vector<float> texels(m.texels());
+  for (std::size_t t = 0; t < texels.size(); ++t)
+    texels[t] =
+        static_cast<float>(lit(m.origin.x + static_cast<double>(t % static_cast<std::size_t>(m.width)) * m.spacing,
+                               m.origin.y + static_cast<double>(t / static_cast<std::size_t>(m.width)) * m.spacing));
+  double outside_min = 1, sum_abs = 0, max_abs = 0;
+  int inside = 0, outside = 0, shadowed = 0;
+  for (int i = 0; i < 120; ++i)
+    for (int j = 0; j < 120; ++j) {
+      const double x = -9 + 18 * (i + 0.37) / 120, z = -9 + 18 * (j + 0.61) / 120;
+      const double traced = lit(x, z);
+      const double fx = (x - m.origin.x) / m.spacing, fz = (z - m.origin.y) / m.spacing;
+      if (fx < 0 || fz < 0 || fx >= m.width - 1 || fz >= m.height - 1) {
+        outside_min = std::min(outside_min, traced);
+        ++outside;
+        continue;
+      }
+      const double e = std::abs(detail::SampleGroundLitMap(m, texels, x, z) - traced);
+      sum_abs += e;
+      max_abs = std::max(max_abs, e);
+      ++inside;
+      shadowed += traced < 0.9;
+    }
+  std::printf(
+      "ground lit grid %dx%d at %.3f m: %d points inside (%d shadowed), |grid - trace| mean %.4f max %.3f; "
+      "%d outside, lowest trace there %.4f\n",
+      m.width, m.height, m.spacing, inside, shadowed, sum_abs / inside, max_abs, outside, outside_min);
+  EXPECT_GT(shadowed, 500);
+  EXPECT_GT(outside, 2000);
+  EXPECT_EQ(outside_min, 1.0);
+  EXPECT_LT(sum_abs / inside, 0.01);
+  EXPECT_LT(max_abs, 0.3);
+
+  // Without peak cones the grid is the cube's footprint; a sun on the horizon reaches anywhere.
+  const detail::GroundLitMapLayout up_only = detail::GroundLitMapLayoutFor(spec, l, false, {0, 0}, 30, 128);
+  EXPECT_LT(up_only.width, m.width);
+  EXPECT_NEAR(up_only.spacing, spec.voxel_size, 1e-12);
+  detail::PreparedLighting horizon = l;
+  horizon.peaks[0].axis = glm::dvec3(1, 0, 0);
+  const detail::GroundLitMapLayout wide = detail::GroundLitMapLayoutFor(spec, horizon, true, {0, 0}, 30, 128);
+  EXPECT_LE(wide.origin.x, -30.0);
+  EXPECT_GE(wide.origin.x + (wide.width - 1) * wide.spacing, 30.0);
+  EXPECT_LE(std::max(wide.width, wide.height), 128);
+}
+
+// The renderer with the grid against the traces per cone, and its GPU path against the CPU
+// reference with the grid: the floating box under a sky and a sun whose shadow it sees below it.
+TEST_F(TripleProductRendererGL, GroundLitMapShadesAsTheTracesDo) {
+  const scene::GltfScene car = FloatingBox();
+  const PinholeCamera cam = FloatingBoxCamera();
+  lighting::SgLighting l;
+  l.constant = glm::vec3(0.5f);
+  const double elevation = 40 * 3.14159265358979323846 / 180;
+  l.peaks.push_back({glm::dvec3(-std::cos(elevation) * 0.6, std::sin(elevation), std::cos(elevation) * 0.8), 800.0,
+                     glm::vec3(400.f)});
+  RenderOptions grid;
+  grid.voxel_resolution = 64;
+  RenderOptions traced = grid, off = grid;
+  traced.ground_lit_map_texels = 0;
+  off.ground_shadows_bounce = false;
+  TripleProductRenderer r_grid(car, glm::dmat4(1.0), grid), r_traced(car, glm::dmat4(1.0), traced),
+      r_off(car, glm::dmat4(1.0), off);
+  for (auto* r : {&r_grid, &r_traced, &r_off}) r->SetLighting(l);
+  const RenderResult with_grid = r_grid.Render(cam, ShadeDevice::kGpu), cpu = r_grid.Render(cam, ShadeDevice::kCpu);
+  const RenderResult with_traces = r_traced.Render(cam, ShadeDevice::kGpu),
+                     without = r_off.Render(cam, ShadeDevice::kGpu);
+  ASSERT_GT(with_grid.counts.car_pixels, 300);
+  const double loss_grid = MeanCarLuma(without) - MeanCarLuma(with_grid),
+               loss_traced = MeanCarLuma(without) - MeanCarLuma(with_traces);
+  const Diff d = Compare(with_grid.car, with_traces.car, with_grid.car_alpha),
+             g = Compare(with_grid.car, cpu.car, with_grid.car_alpha);
+  std::printf(
+      "ground's shadow in the bounce: loss %.5f read from the grid, %.5f traced per cone; car grid vs traces "
+      "mean %.5f p99 %.4f rel; GPU vs CPU (grid) mean %.5f p99 %.4f\n",
+      loss_grid, loss_traced, d.mean_rel, d.p99_rel, g.mean_rel, g.p99_rel);
+  ASSERT_GT(loss_traced, 0.0);
+  EXPECT_NEAR(loss_grid / loss_traced, 1.0, 0.05);
+  EXPECT_LT(d.mean_rel, 0.005);
+  EXPECT_LT(g.mean_rel, 0.01);
+  EXPECT_LT(g.p99_rel, 0.05);
 }
 
 TEST_F(TripleProductRendererGL, MoreLevelsAndMoreConesConverge) {
