@@ -124,7 +124,7 @@ struct RenderOptions {
   // (detail::GroundLitMapLayoutFor), traced once per render at each texel, instead of traced from
   // every point where a car cone meets the ground (0). Those traces were 4 of the H200's 26.5 ms
   // of 1280×720 shading (docs/benchmarks/h200.md, third run); on llvmpipe the grid takes the
-  // bench's 1×1 rows to a median 0.80× their shade time and moves no mean_rel against Cycles by
+  // bench's 1×1 rows to a median 0.83× their shade time and moves no mean_rel against Cycles by
   // more than 0.0007 (docs/benchmarks/render_accuracy.md, "The ground's lit fraction from a grid").
   int ground_lit_map_texels = 128;
   std::vector<MaterialOverride> materials;
