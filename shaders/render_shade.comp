@@ -302,22 +302,31 @@ void coneCosineRatios(vec3 n, bool cosine, inout ConeSet set) {
 }
 
 // The visible share of ∫ G_lobe G_light over the cones: Σ v_i ∫P V_i / Σ ∫P V_i with
-// P = G_lobe G_light and V_i the cone SGs. The exponents are rescaled on the fly (as an online
-// softmax) so that sharp products far from every cone do not underflow to 0/0.
+// P = G_lobe G_light and V_i the cone SGs, the exponents shifted by their maximum so that sharp
+// products far from every cone do not underflow to 0/0.
 // ground_loss: instead Σ v_i (1 − g_i) ∫P V_i / Σ ∫P V_i, g_i the cones' ground_lit: the share of
 // the product that the car's shadow takes off the ground's bounce.
+// Per cone only λ and the log amplitude of P·V_i are needed, both from c = a·c_i:
+// r² = λp² + λc² + 2λpλc c and r − Λ = −λpλc |a − c_i|² / (r + Λ) with |a − c_i|² = 2(1 − c)
+// (sg_integral.glsl), one dot product where sgProduct builds two vectors; and the maximum is
+// taken first, where an online rescale spent an exp on every new maximum. A lobe of one cone
+// shares its visibility whatever the weights.
 float visibleShareOf(SgProduct prod, in ConeSet set, bool ground_loss) {
-  float num = 0.0, den = 0.0, top = -3.0e38;
+  if (set.count == 1) return ground_loss ? set.visibility[0] * (1.0 - set.ground_lit[0]) : set.visibility[0];
+  float lp = prod.lambda, lc = set.lambda, sum = lp + lc, twice = 2.0 * lp * lc;
+  float log_w[kMaxCones], shape[kMaxCones];
+  float top = -3.0e38;
+  for (int i = 0; i < kMaxCones; ++i) {
+    float gap = 1.0 - dot(prod.axis, set.axis[i]);  // |a − c_i|² / 2
+    float r = sqrt(max(sum * sum - twice * gap, 0.0));
+    log_w[i] = -twice * gap / (r + sum);
+    shape[i] = sgShape(r) * set.cosine_ratio[i];
+    if (i < set.count) top = max(top, log_w[i]);
+  }
+  float num = 0.0, den = 0.0;
   for (int i = 0; i < kMaxCones; ++i) {
     if (i >= set.count) continue;
-    SgProduct q = sgProduct(prod.axis, prod.lambda, set.axis[i], set.lambda);
-    if (q.log_amplitude > top) {
-      float s = exp(top - q.log_amplitude);
-      num *= s;
-      den *= s;
-      top = q.log_amplitude;
-    }
-    float w = exp(q.log_amplitude - top) * sgShape(q.lambda) * set.cosine_ratio[i];
+    float w = exp(log_w[i] - top) * shape[i];
     num += w * set.visibility[i] * (ground_loss ? 1.0 - set.ground_lit[i] : 1.0);
     den += w;
   }
