@@ -97,6 +97,8 @@ elif [ "$quick" = shade ]; then
   render 720p_bin_depth --size 1280x720 --composite-only --bin-depth
   render 720p_cutoff1e-2 --size 1280x720 --composite-only --overlap-cutoff 0.01
   render 720p_v64_l4 --size 1280x720 --composite-only --voxels 64 --levels 4
+  render 720p_traced_ground --size 1280x720 --composite-only --ground-lit-map 0
+  render 720p_v64_l4_traced_ground --size 1280x720 --composite-only --voxels 64 --levels 4 --ground-lit-map 0
   for v in "${VARIANTS:-$bundle/var}"/*/; do
     [ -d "$v" ] || continue
     name=$(basename "$v")
@@ -104,6 +106,9 @@ elif [ "$quick" = shade ]; then
       --env "$env/sky.exr" --repeat 10 --out "$results/render_720p_$name.png" --json --size 1280x720 --composite-only
   done
   step player 60 "$odvr" bench player --size 1280x720 --frames 30 --out "$results/player.md"
+  step player_l5 60 "$odvr" bench player --size 1280x720 --frames 30 --levels 5 --voxels 128 \
+    --out "$results/player_l5.md"
+  step player_live 60 "$odvr" bench player --live --size 1280x720 --frames 30 --out "$results/player_live.md"
   step render_hd 60 "$odvr" bench render --only sunset_glossy --levels 5 --cones 7 --voxels 128 --mc-samples 16 \
     --no-lobe-modes --no-ground-bounce --out "$results/render_hd"
 elif [ "$quick" = quick ]; then
