@@ -1,23 +1,29 @@
 #version 450
 // The keep rule of the residual transform: an SRBF whose largest |μ| channel is below uKeep
 // (keep threshold × mean radiance) is dropped (μ = 0). Counts the kept SRBFs and flags whether
-// a non-zero μ was dropped, so the residue is recomputed only then.
+// a non-zero μ was dropped, so the residue is recomputed only then; in the level's slot of the
+// flags, which the CPU reads for every level at once.
 layout(local_size_x = 64) in;
 
 layout(std430, binding = 0) buffer Mu { vec4 mu[]; };
-layout(std430, binding = 1) buffer Flags { uint kept; uint dropped; };
+layout(std430, binding = 1) buffer Flags { uint flags[]; };  // per level: kept, dropped
+// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
+// queued after the stop do nothing.
+layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
 
 uniform int uCount;
 uniform float uKeep;
+uniform int uFlagsSlot;
 
 void main() {
+  if (gate_closed != 0u) return;
   int c = int(gl_GlobalInvocationID.x);
   if (c >= uCount) return;
   vec3 m = mu[c].rgb;
   if (max(abs(m.r), max(abs(m.g), abs(m.b))) < uKeep) {
-    if (m != vec3(0.0)) atomicOr(dropped, 1u);
+    if (m != vec3(0.0)) atomicOr(flags[2 * uFlagsSlot + 1], 1u);
     mu[c] = vec4(0.0);
   } else {
-    atomicAdd(kept, 1u);
+    atomicAdd(flags[2 * uFlagsSlot], 1u);
   }
 }

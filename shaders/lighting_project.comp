@@ -22,6 +22,9 @@ layout(std430, binding = 1) readonly buffer SrbfBegin { int srbf_begin[]; };
 layout(std430, binding = 2) readonly buffer SrbfEntries { Entry srbf_entries[]; };
 layout(std430, binding = 3) readonly buffer SrbfScale { float srbf_scale[]; };
 layout(std430, binding = 4) buffer Mu { vec4 mu[]; };
+// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
+// queued after the stop do nothing.
+layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
 
 uniform int uAccumulate;
 uniform float uStep;
@@ -29,6 +32,7 @@ uniform float uStep;
 shared vec3 s_partial[GROUP_SIZE];
 
 void main() {
+  if (gate_closed != 0u) return;
   uint c = gl_WorkGroupID.x, tid = gl_LocalInvocationID.x;
   int end = srbf_begin[c + 1u];
   vec3 acc = vec3(0.0);

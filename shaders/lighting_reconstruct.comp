@@ -20,18 +20,23 @@ layout(std430, binding = 3) readonly buffer PixelEntries { Entry pixel_entries[]
 layout(std430, binding = 4) readonly buffer Mu { vec4 mu[]; };
 layout(std430, binding = 5) readonly buffer Target { vec4 target[]; };
 layout(std430, binding = 6) writeonly buffer Residue { vec4 residue[]; };
-layout(std430, binding = 7) readonly buffer Flags { uint kept; uint dropped; };
+layout(std430, binding = 7) readonly buffer Flags { uint flags[]; };  // per level: kept, dropped
+// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
+// queued after the stop do nothing.
+layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
 
 uniform int uCount;
 uniform float uSign;
 uniform int uUseLists;
 uniform int uWriteResidue;
 uniform int uOnlyIfDropped;
+uniform int uFlagsSlot;  // the level whose dropped flag uOnlyIfDropped reads
 
 void main() {
+  if (gate_closed != 0u) return;
   int p = int(gl_GlobalInvocationID.x);
   if (p >= uCount) return;
-  if (uOnlyIfDropped != 0 && dropped == 0u) return;
+  if (uOnlyIfDropped != 0 && flags[2 * uFlagsSlot + 1] == 0u) return;
   vec3 acc = vec3(0.0);
   if (uUseLists != 0) {
     int end = pixel_begin[p + 1];

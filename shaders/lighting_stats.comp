@@ -11,6 +11,9 @@ layout(local_size_x = GROUP_SIZE) in;
 
 layout(std430, binding = 0) readonly buffer Image { vec4 pixels[]; };
 layout(std430, binding = 1) writeonly buffer Rows { vec4 rows[]; };
+// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
+// queued after the stop do nothing.
+layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
 
 uniform ivec2 uSize;
 
@@ -18,6 +21,7 @@ shared vec4 s_sum[GROUP_SIZE];
 shared float s_sq[GROUP_SIZE];
 
 void main() {
+  if (gate_closed != 0u) return;
   uint row = gl_WorkGroupID.x, tid = gl_LocalInvocationID.x;
   vec4 sum = vec4(0.0);
   float sq = 0.0;

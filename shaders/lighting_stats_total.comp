@@ -11,6 +11,9 @@ layout(local_size_x = GROUP_SIZE) in;
 layout(std430, binding = 0) readonly buffer Rows { vec4 rows[]; };
 layout(std430, binding = 1) readonly buffer RowSolidAngle { double row_solid_angle[]; };
 layout(std430, binding = 2) buffer Totals { double totals[]; };
+// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
+// queued after the stop do nothing.
+layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
 
 uniform int uRows;
 uniform int uSlot;
@@ -18,6 +21,7 @@ uniform int uSlot;
 shared double s_acc[5][GROUP_SIZE];
 
 void main() {
+  if (gate_closed != 0u) return;
   uint tid = gl_LocalInvocationID.x;
   double acc[5] = double[5](0.0LF, 0.0LF, 0.0LF, 0.0LF, 0.0LF);
   for (int row = int(tid); row < uRows; row += GROUP_SIZE) {

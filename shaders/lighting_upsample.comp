@@ -8,6 +8,9 @@ layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(std430, binding = 0) readonly buffer Source { vec4 source[]; };
 layout(std430, binding = 1) writeonly buffer Target { vec4 target[]; };
+// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
+// queued after the stop do nothing.
+layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
 
 uniform ivec2 uSourceSize;
 uniform ivec2 uTargetSize;
@@ -38,6 +41,7 @@ void lagrangeWeights(float t, out float w[6]) {
 }
 
 void main() {
+  if (gate_closed != 0u) return;
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   if (p.x >= uTargetSize.x || p.y >= uTargetSize.y) return;
   int factor = uTargetSize.x / uSourceSize.x;

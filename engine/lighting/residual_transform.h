@@ -132,6 +132,9 @@ struct TransformReport {
   double total_ms = 0;
   std::string stop_reason;
   std::string device = "cpu";
+  // GPU: the levels whose passes ran; those queued after the transform stopped are gated off
+  // (ResidualTransformGpu). 0 on the CPU, which never starts a level after a stop.
+  int gpu_levels_run = 0;
 };
 
 // One HEALPix level's overlap lists on one working grid (built once, reused every frame).

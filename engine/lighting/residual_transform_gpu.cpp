@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <glm/vec4.hpp>
 #include <string>
 
@@ -20,10 +21,16 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
-// Slots of the totals buffer (lighting_stats_total.comp): 8 doubles each.
-constexpr int kSlotFrame = 0, kSlotBefore = 1, kSlotAfter = 2, kSlots = 3;
+// Slots of the totals buffer (lighting_stats_total.comp): 8 doubles each; the frame's, then per
+// level the residue entering it and the one it leaves.
+constexpr int kMaxLevels = 6;
+constexpr int kSlotFrame = 0, kSlots = 1 + 2 * kMaxLevels;
+int SlotBefore(int level) { return 1 + 2 * level; }
+int SlotAfter(int level) { return 2 + 2 * level; }
 constexpr std::size_t kSlotDoubles = 8;
-constexpr std::size_t kPixelBytes = 4 * sizeof(float);  // vec4 per pixel
+constexpr std::size_t kFlagsBytes = 2 * kMaxLevels * sizeof(std::uint32_t);  // per level: kept, dropped
+constexpr std::size_t kGateBytes = 2 * sizeof(std::uint32_t);                // closed, levels run
+constexpr std::size_t kPixelBytes = 4 * sizeof(float);                       // vec4 per pixel
 
 // One overlap-list entry as the shaders read it: std430 struct { int; float; }.
 struct Entry {
@@ -103,12 +110,18 @@ ResidualTransformGpu::ResidualTransformGpu(ResidualTransformOptions options)
   upsample_ = gl::ShaderLibrary::Compute("lighting_upsample.comp");
   reconstruct_ = gl::ShaderLibrary::Compute("lighting_reconstruct.comp");
   keep_ = gl::ShaderLibrary::Compute("lighting_keep.comp");
+  gate_program_ = gl::ShaderLibrary::Compute("lighting_gate.comp");
   totals_ = Zeros(sizeof(double) * kSlotDoubles * kSlots);
-  flags_ = Zeros(2 * sizeof(std::uint32_t));
+  flags_ = Zeros(kFlagsBytes);
   counters_ = Zeros(2 * sizeof(std::uint32_t));
+  gate_ = Zeros(2 * sizeof(std::uint32_t));  // closed, levels run (lighting_gate.comp)
+  level_queries_.assign(static_cast<std::size_t>(kMaxLevels) + 1, 0);
+  glCreateQueries(GL_TIMESTAMP, static_cast<GLsizei>(level_queries_.size()), level_queries_.data());
 }
 
-ResidualTransformGpu::~ResidualTransformGpu() = default;
+ResidualTransformGpu::~ResidualTransformGpu() {
+  glDeleteQueries(static_cast<GLsizei>(level_queries_.size()), level_queries_.data());
+}
 
 const ResidualTransformGpu::Tables& ResidualTransformGpu::TablesFor(int level, int width, int height, bool projection) {
   auto& slot = tables_[{level, width, height}];
@@ -167,8 +180,20 @@ void ResidualTransformGpu::PrepareGrids(int input_width, int input_height) {
     grids_.push_back(std::move(g));
   }
   for (auto& b : recon_) b.Allocate(finest * kPixelBytes);
-  residue_.Allocate(finest * kPixelBytes);
-  remaining_.Allocate(finest * kPixelBytes);
+  correction_.Allocate(finest * kPixelBytes);
+  level_residue_.clear();
+  level_remaining_.clear();
+  level_mu_.clear();
+  std::size_t all_srbfs = 0;
+  for (int s = 0; s < options_.levels; ++s) {
+    const std::size_t pixels = grids_[static_cast<std::size_t>(s)]->pixels();
+    const std::size_t srbfs = static_cast<std::size_t>(12) << (2 * s);
+    level_residue_.emplace_back().Allocate(pixels * kPixelBytes);
+    level_remaining_.emplace_back().Allocate(pixels * kPixelBytes);
+    level_mu_.emplace_back().Allocate(srbfs * kPixelBytes);
+    all_srbfs += srbfs;
+  }
+  results_.Allocate(sizeof(double) * kSlotDoubles * kSlots + kFlagsBytes + kGateBytes + all_srbfs * kPixelBytes);
   row_sums_.Allocate(static_cast<std::size_t>(grids_.back()->height) * 2 * kPixelBytes);
   const std::size_t srbfs = static_cast<std::size_t>(12) << (2 * (options_.levels - 1));
   for (auto& b : mu_) b.Allocate(srbfs * kPixelBytes);
@@ -192,8 +217,8 @@ void ResidualTransformGpu::Sums(const gl::Buffer& image, const Grid& grid, int s
 }
 
 void ResidualTransformGpu::Reconstruct(const Tables* tables, const gl::Buffer& mu, const gl::Buffer& base,
-                                       const gl::Buffer& out, float sign, const Grid& grid, bool write_residue,
-                                       bool only_if_dropped) {
+                                       const gl::Buffer& out, float sign, const Grid& grid, const gl::Buffer* residue,
+                                       int dropped_slot) {
   Bind(base, 0);
   Bind(out, 1);
   // Unused bindings still get a valid buffer: the shader never touches them then.
@@ -201,13 +226,14 @@ void ResidualTransformGpu::Reconstruct(const Tables* tables, const gl::Buffer& m
   Bind(tables ? tables->pixel_entries : flags_, 3);
   Bind(mu, 4);
   Bind(grid.image, 5);
-  Bind(write_residue ? residue_ : remaining_, 6);
+  Bind(residue ? *residue : out, 6);
   Bind(flags_, 7);
   reconstruct_.Set("uCount", static_cast<int>(grid.pixels()))
       .Set("uSign", sign)
       .Set("uUseLists", tables ? 1 : 0)
-      .Set("uWriteResidue", write_residue ? 1 : 0)
-      .Set("uOnlyIfDropped", only_if_dropped ? 1 : 0)
+      .Set("uWriteResidue", residue ? 1 : 0)
+      .Set("uOnlyIfDropped", dropped_slot >= 0 ? 1 : 0)
+      .Set("uFlagsSlot", std::max(dropped_slot, 0))
       .DispatchCovering(static_cast<unsigned>(grid.pixels()));
   StorageBarrier();
 }
@@ -230,10 +256,10 @@ void ResidualTransformGpu::CorrectCoarserLevels(const gl::Buffer& leftover, int 
   const int upper = finest - 1, lower = std::max(0, finest - 2);
   const Grid &source = *grids_[static_cast<std::size_t>(leftover_grid)],
              &grid = *grids_[static_cast<std::size_t>(upper)];
-  // The residue on the upper level's grid, in whichever scratch buffer `leftover` is not.
+  // The residue on the upper level's grid: `leftover` itself, or restricted into the scratch.
   const gl::Buffer* residue = &leftover;
   if (source.width != grid.width || source.height != grid.height) {
-    residue = &leftover == &residue_ ? &remaining_ : &residue_;
+    residue = &correction_;
     Bind(leftover, 0);
     Bind(*residue, 1);
     SetSize(resample_, "uSourceSize", source.width, source.height);
@@ -249,7 +275,7 @@ void ResidualTransformGpu::CorrectCoarserLevels(const gl::Buffer& leftover, int 
     // μ = 0 + step · projection: the step applied before the residue is updated, as on the CPU.
     glClearNamedBufferData(delta.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
     Project(t, *residue, delta, true, kCoarseCorrectionStep);
-    if (l > lower) Reconstruct(&t, delta, *residue, *residue, -1.f, grid, false, false);
+    if (l > lower) Reconstruct(&t, delta, *residue, *residue, -1.f, grid, nullptr, -1);
   }
   for (int l = upper; l >= lower; --l) {
     const std::vector<glm::vec4> delta4 =
@@ -287,7 +313,10 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   report.device = "gpu";
   SgLighting model;
   PrepareGrids(input_width, input_height);
-  // Whatever wrote the frame (an upload, a stitching pass) lands before it is sampled.
+  // The gate open (the level passes and the sums read it at binding 9), and whatever wrote the
+  // frame (an upload, a stitching pass) landed before it is sampled.
+  glClearNamedBufferData(gate_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+  Bind(gate_, 9);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
 
   // Working grids, finest first, each area-resampled from the next finer one; the finest from
@@ -334,33 +363,35 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   if (options_.constant_term) model.constant = glm::vec3(frame_sums.rgb / (4 * sphere::kPi));
 
   const float keep = static_cast<float>(options_.keep_threshold * report.mean_radiance);
-  int recon = 0, mu = 0;  // which of the two buffers holds the current reconstruction / amplitudes
-  int previous_level = -1;
-  // What every kept level left, for the coarse correction: remaining_ on the last kept level's
-  // grid, or residue_ on the grid of a rejected level (what the CPU path's `leftover` holds).
-  bool converged = false, leftover_in_residue = false;
-  int leftover_grid = 0;
+  // The stop rule's mean |residue| < threshold × mean radiance, as a bound on Σ (|r|+|g|+|b|) dA,
+  // so that the gate on the GPU and the replay below compare the same doubles.
+  const double abs_limit = options_.stop_threshold * report.mean_radiance * 3.0 * (4 * sphere::kPi);
+  glClearNamedBufferData(flags_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+  const std::size_t totals_bytes = sizeof(double) * kSlotDoubles * kSlots;
+  std::vector<std::size_t> mu_offset;  // each level's amplitudes in results_
+  std::size_t offset = totals_bytes + kFlagsBytes + kGateBytes;
+
+  // Every level queued at once (see the header): R_{<s}, the residue, the level's fit, its keep
+  // rule, the residue it leaves, and the gate.
+  int recon = 0;
   for (int s = 0; s < levels; ++s) {
-    const auto level_start = Clock::now();
-    const Grid& grid = *grids_[static_cast<std::size_t>(s)];
+    const auto level = static_cast<std::size_t>(s);
+    glQueryCounter(level_queries_[level], GL_TIMESTAMP);
+    const Grid& grid = *grids_[level];
+    const gl::Buffer &residue = level_residue_[level], &remaining = level_remaining_[level], &mu = level_mu_[level];
     // R_{<s} on this grid and the residue r_s = I_s − R_{<s}: at level 0 the constant; then every
     // coarser level evaluated here, or (exact_reconstruction off) the coarser reconstruction
     // magnified plus the previous level evaluated here.
-    if (s == 0) {
+    if (s == 0 || options_.exact_reconstruction) {
       const float fill[4] = {model.constant.x, model.constant.y, model.constant.z, 0.f};
       glClearNamedBufferSubData(recon_[recon].id(), GL_RGBA32F, 0, grid.pixels() * kPixelBytes, GL_RGBA, GL_FLOAT,
                                 fill);
-      Reconstruct(nullptr, mu_[mu], recon_[recon], recon_[recon], 1.f, grid, true, false);
-    } else if (options_.exact_reconstruction) {
-      // Every accepted coarser level evaluated on this grid, as the CPU path does.
-      const float fill[4] = {model.constant.x, model.constant.y, model.constant.z, 0.f};
-      glClearNamedBufferSubData(recon_[recon].id(), GL_RGBA32F, 0, grid.pixels() * kPixelBytes, GL_RGBA, GL_FLOAT,
-                                fill);
+      if (s == 0) Reconstruct(nullptr, mu, recon_[recon], recon_[recon], 1.f, grid, &residue, -1);
       for (int l = 0; l < s; ++l)
         Reconstruct(&TablesFor(l, grid.width, grid.height, false), level_mu_[static_cast<std::size_t>(l)],
-                    recon_[recon], recon_[recon], 1.f, grid, l == s - 1, false);
+                    recon_[recon], recon_[recon], 1.f, grid, l == s - 1 ? &residue : nullptr, -1);
     } else {
-      const Grid& coarser = *grids_[static_cast<std::size_t>(s) - 1];
+      const Grid& coarser = *grids_[level - 1];
       Bind(recon_[recon], 0);
       Bind(recon_[1 - recon], 1);
       SetSize(upsample_, "uSourceSize", coarser.width, coarser.height);
@@ -368,41 +399,83 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
       upsample_.DispatchCovering(static_cast<unsigned>(grid.width), static_cast<unsigned>(grid.height));
       StorageBarrier();
       recon = 1 - recon;
-      const Tables& previous = TablesFor(previous_level, grid.width, grid.height, false);
-      Reconstruct(&previous, mu_[1 - mu], recon_[recon], recon_[recon], 1.f, grid, true, false);
+      Reconstruct(&TablesFor(s - 1, grid.width, grid.height, false), level_mu_[level - 1], recon_[recon], recon_[recon],
+                  1.f, grid, &residue, -1);
     }
-    Sums(residue_, grid, kSlotBefore);
+    Sums(residue, grid, SlotBefore(s));
 
     // The level's amplitudes (eq. 4.17) and the residue they leave (eq. 4.18), refitted by the
-    // extra sweeps, then the keep rule; all without a readback. The stop rule's "before" sum is
-    // read together with the level's result: if it says the transform had already converged,
-    // this level's work is discarded, which costs one level once per frame instead of one more
-    // GPU round trip per level.
+    // extra sweeps, then the keep rule.
     const Tables& t = TablesFor(s, grid.width, grid.height, true);
-    Project(t, residue_, mu_[mu], false);
-    Reconstruct(&t, mu_[mu], residue_, remaining_, -1.f, grid, false, false);
+    Project(t, residue, mu, false);
+    Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr, -1);
     for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
-      Project(t, remaining_, mu_[mu], true, RelaxationOf(options_, s));
-      Reconstruct(&t, mu_[mu], residue_, remaining_, -1.f, grid, false, false);
+      Project(t, remaining, mu, true, RelaxationOf(options_, s));
+      Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr, -1);
     }
-    glClearNamedBufferData(flags_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
-    Bind(mu_[mu], 0);
+    Bind(mu, 0);
     Bind(flags_, 1);
-    keep_.Set("uCount", t.srbfs).Set("uKeep", keep).DispatchCovering(static_cast<unsigned>(t.srbfs));
+    keep_.Set("uCount", t.srbfs)
+        .Set("uKeep", keep)
+        .Set("uFlagsSlot", s)
+        .DispatchCovering(static_cast<unsigned>(t.srbfs));
     StorageBarrier();
-    Reconstruct(&t, mu_[mu], residue_, remaining_, -1.f, grid, false, true);
-    Sums(remaining_, grid, kSlotAfter);
+    Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr, s);
+    Sums(remaining, grid, SlotAfter(s));
+    Bind(totals_, 0);
+    Bind(flags_, 1);
+    gate_program_.Set("uLevel", s).Set("uBeforeSlot", SlotBefore(s)).Set("uAfterSlot", SlotAfter(s));
+    glProgramUniform1d(gate_program_.id(), gate_program_.Uniform("uAbsLimit"), abs_limit);
+    gate_program_.Use();
+    glDispatchCompute(1, 1, 1);
+    StorageBarrier();
+    mu_offset.push_back(offset);
+    const std::size_t mu_bytes = static_cast<std::size_t>(t.srbfs) * kPixelBytes;
+    glCopyNamedBufferSubData(mu.id(), results_.id(), 0, static_cast<GLintptr>(offset),
+                             static_cast<GLsizeiptr>(mu_bytes));
+    offset += mu_bytes;
+  }
+  glQueryCounter(level_queries_[static_cast<std::size_t>(levels)], GL_TIMESTAMP);
+  glCopyNamedBufferSubData(totals_.id(), results_.id(), 0, 0, static_cast<GLsizeiptr>(totals_bytes));
+  glCopyNamedBufferSubData(flags_.id(), results_.id(), 0, static_cast<GLintptr>(totals_bytes),
+                           static_cast<GLsizeiptr>(kFlagsBytes));
+  glCopyNamedBufferSubData(gate_.id(), results_.id(), 0, static_cast<GLintptr>(totals_bytes + kFlagsBytes),
+                           static_cast<GLsizeiptr>(kGateBytes));
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  const std::vector<std::uint8_t> results = results_.Read<std::uint8_t>(offset);
+  std::vector<double> totals(kSlotDoubles * kSlots);
+  std::memcpy(totals.data(), results.data(), totals_bytes);
+  std::uint32_t flags[2 * kMaxLevels];
+  std::memcpy(flags, results.data() + totals_bytes, kFlagsBytes);
+  std::uint32_t gate[2];
+  std::memcpy(gate, results.data() + totals_bytes + kFlagsBytes, kGateBytes);
+  report.gpu_levels_run = static_cast<int>(gate[1]);
+  std::vector<double> level_ms(static_cast<std::size_t>(levels), 0.0);
+  {
+    std::vector<GLuint64> stamps(static_cast<std::size_t>(levels) + 1);
+    for (std::size_t i = 0; i < stamps.size(); ++i)
+      glGetQueryObjectui64v(level_queries_[i], GL_QUERY_RESULT, &stamps[i]);
+    for (std::size_t i = 0; i < level_ms.size(); ++i)
+      level_ms[i] = static_cast<double>(stamps[i + 1] - stamps[i]) * 1e-6;
+  }
+  glClearNamedBufferData(gate_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                         nullptr);  // the correction's passes run
 
-    const std::vector<double> totals = totals_.Read<double>();
-    const int kept = static_cast<int>(flags_.Read<std::uint32_t>()[0]);
-    const SphereSums before_sums = SumsOf(totals, kSlotBefore), after_sums = SumsOf(totals, kSlotAfter);
-    const double before = before_sums.MeanAbs() / report.mean_radiance;
-    if (before < options_.stop_threshold && s > 0) {
+  // The rules again, on the same sums and with the same comparisons as the gate, to pick the levels.
+  bool converged = false;
+  const gl::Buffer* leftover = nullptr;  // what every kept level left, for the coarse correction
+  int leftover_grid = 0;
+  for (int s = 0; s < levels; ++s) {
+    const auto level = static_cast<std::size_t>(s);
+    const SphereSums before_sums = SumsOf(totals, SlotBefore(s)), after_sums = SumsOf(totals, SlotAfter(s));
+    if (s > 0 && before_sums.abs < abs_limit) {
       report.stop_reason = "residue below threshold before level " + std::to_string(s);
       converged = true;
       break;
     }
-    const double after = after_sums.MeanAbs() / report.mean_radiance;
+    const Grid& grid = *grids_[level];
+    const Tables& t = TablesFor(s, grid.width, grid.height, true);
+    const int kept = static_cast<int>(flags[2 * level]);
     LevelReport lr;
     lr.level = s;
     lr.srbfs_total = t.srbfs;
@@ -410,53 +483,42 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     lr.lambda = t.lambda;
     lr.width = grid.width;
     lr.height = grid.height;
-    lr.residue_before = before;
-    if (!LevelReducesResidue(before_sums.Rms(), after_sums.Rms(), kept)) {
+    lr.residue_before = before_sums.MeanAbs() / report.mean_radiance;
+    lr.ms = level_ms[level];
+    if (!(after_sums.sq < before_sums.sq && kept > 0)) {  // LevelReducesResidue on the squares
       lr.srbfs_kept = 0;
-      lr.residue_after = before;
-      lr.ms = MsSince(level_start);
+      lr.residue_after = lr.residue_before;
       report.levels.push_back(lr);
       report.stop_reason = "level " + std::to_string(s) + " does not reduce the residue";
-      leftover_in_residue = true;
+      leftover = &level_residue_[level];
       leftover_grid = s;
       break;
     }
-    lr.residue_after = after;
-    const std::vector<glm::vec4> amplitudes = mu_[mu].Read<glm::vec4>(static_cast<std::size_t>(t.srbfs));
-    SgLevel level;
-    level.level = s;
-    level.lambda = t.lambda;
+    lr.residue_after = after_sums.MeanAbs() / report.mean_radiance;
+    std::vector<glm::vec4> amplitudes(static_cast<std::size_t>(t.srbfs));
+    std::memcpy(amplitudes.data(), results.data() + mu_offset[level], amplitudes.size() * sizeof(glm::vec4));
+    SgLevel kept_level;
+    kept_level.level = s;
+    kept_level.lambda = t.lambda;
     for (std::size_t c = 0; c < amplitudes.size(); ++c) {
       const glm::vec3 m(amplitudes[c]);
       if (m == glm::vec3(0)) continue;
-      level.indices.push_back(static_cast<int>(c));
-      level.amplitudes.push_back(m);
+      kept_level.indices.push_back(static_cast<int>(c));
+      kept_level.amplitudes.push_back(m);
     }
-    model.levels.push_back(std::move(level));
-    if (options_.exact_reconstruction) {
-      const std::size_t bytes = static_cast<std::size_t>(t.srbfs) * kPixelBytes;
-      if (level_mu_.size() <= static_cast<std::size_t>(s)) level_mu_.resize(static_cast<std::size_t>(s) + 1);
-      gl::Buffer& kept_mu = level_mu_[static_cast<std::size_t>(s)];
-      if (kept_mu.size() < bytes) {
-        kept_mu = gl::Buffer();
-        kept_mu.Allocate(bytes);
-      }
-      glCopyNamedBufferSubData(mu_[mu].id(), kept_mu.id(), 0, 0, static_cast<GLsizeiptr>(bytes));
-    }
-    mu = 1 - mu;  // the accepted amplitudes stay on the GPU for the next level's reconstruction
-    previous_level = s;
+    model.levels.push_back(std::move(kept_level));
+    leftover = &level_remaining_[level];
     leftover_grid = s;
-    lr.ms = MsSince(level_start);
     report.levels.push_back(lr);
-    if (after < options_.stop_threshold) {
+    if (after_sums.abs < abs_limit) {
       report.stop_reason = "residue below threshold after level " + std::to_string(s);
       break;
     }
   }
   if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
-  if (CoarseCorrectionApplies(options_, static_cast<int>(model.levels.size()), converged)) {
+  if (leftover && CoarseCorrectionApplies(options_, static_cast<int>(model.levels.size()), converged)) {
     const auto correction_start = Clock::now();
-    CorrectCoarserLevels(leftover_in_residue ? residue_ : remaining_, leftover_grid, keep, &model);
+    CorrectCoarserLevels(*leftover, leftover_grid, keep, &model);
     report.correction_ms = MsSince(correction_start);
   }
   report.total_ms = MsSince(start);

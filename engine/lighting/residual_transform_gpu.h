@@ -6,10 +6,14 @@
 // reconstruction with the residue update (one invocation per pixel over its SRBF list). The
 // frame is uploaded once (or read from a texture the caller already has), area-resampled to the
 // working grids, and the coarser levels evaluated on each grid (or, with exact_reconstruction
-// off, their reconstruction magnified) on the GPU; the CPU reads back only the amplitudes and a
-// few sums per level (mean |residue|, RMS, kept count) that its stop, keep and rejection rules
-// need. The overlap lists come from the CPU's BuildLevelTables, built once
-// per grid size and kept on the GPU as storage buffers.
+// off, their reconstruction magnified) on the GPU. Every level is queued without a read-back in
+// between: after each, lighting_gate.comp applies the stop and rejection rules on the GPU and
+// closes a gate that turns the later levels' passes into no-ops; then one read brings back each
+// level's sums (mean |residue|, RMS, kept count) and amplitudes, and the CPU replays the same
+// rules on them to pick the levels it keeps. Three waits for the GPU in all (the frame's sums,
+// the levels, the coarse correction) where there were three per level. The overlap lists come
+// from the CPU's BuildLevelTables, built once per grid size and kept on the GPU as storage
+// buffers.
 #include <chrono>
 #include <map>
 #include <memory>
@@ -51,11 +55,13 @@ class ResidualTransformGpu {
   void Sums(const gl::Buffer& image, const Grid& grid, int slot);
   void Project(const Tables& tables, const gl::Buffer& residue, const gl::Buffer& mu, bool accumulate,
                float step = 1.f);
-  // out = base + sign·Σ μ G (tables == nullptr: nothing added); see lighting_reconstruct.comp.
+  // out = base + sign·Σ μ G (tables == nullptr: nothing added); with `residue`, also grid's image
+  // − out there; with dropped_slot ≥ 0, only if that level's keep pass dropped an SRBF. See
+  // lighting_reconstruct.comp.
   void Reconstruct(const Tables* tables, const gl::Buffer& mu, const gl::Buffer& base, const gl::Buffer& out,
-                   float sign, const Grid& grid, bool write_residue, bool only_if_dropped);
-  // ResidualTransformOptions::coarse_correction, as the CPU path does it: `leftover` (residue_ or
-  // remaining_) is what every level left, on grids_[leftover_grid].
+                   float sign, const Grid& grid, const gl::Buffer* residue, int dropped_slot);
+  // ResidualTransformOptions::coarse_correction, as the CPU path does it: `leftover` is what every
+  // level left, on grids_[leftover_grid] (refitted in place when that is the upper level's grid).
   void CorrectCoarserLevels(const gl::Buffer& leftover, int leftover_grid, float keep, SgLighting* model);
 
   ResidualTransformOptions options_;
@@ -63,14 +69,20 @@ class ResidualTransformGpu {
   // resample_: between grids (the pyramid, the coarse correction's restriction); both weigh rows
   // by solid angle, as sphere::ResampleArea does.
   gl::Program resample_texture_{gl::NoCreate}, resample_{gl::NoCreate}, upsample_{gl::NoCreate}, stats_{gl::NoCreate},
-      stats_total_{gl::NoCreate}, project_{gl::NoCreate}, reconstruct_{gl::NoCreate}, keep_{gl::NoCreate};
+      stats_total_{gl::NoCreate}, project_{gl::NoCreate}, reconstruct_{gl::NoCreate}, keep_{gl::NoCreate},
+      gate_program_{gl::NoCreate};
   std::map<std::tuple<int, int, int>, std::unique_ptr<Tables>> tables_;
   std::vector<std::unique_ptr<Grid>> grids_;  // per level, for the last input size
   int grids_input_width_ = 0, grids_input_height_ = 0;
   // Scratch images (vec4 per pixel) sized for the finest grid, and the per-level state.
-  gl::Buffer recon_[2], residue_, remaining_, row_sums_, totals_, flags_, counters_, mu_[2];
-  std::vector<gl::Buffer> level_mu_;  // exact reconstruction: every accepted level's amplitudes
-  gl::Texture upload_{gl::NoCreate};  // the frame of Run(EquirectImage), reused while the size holds
+  gl::Buffer recon_[2], correction_, row_sums_, totals_, flags_, counters_, gate_, mu_[2];
+  // Per level, on its grid: the residue entering it and what it leaves (the coarse correction
+  // needs the last kept level's, which the levels queued after it must not overwrite), and its
+  // amplitudes.
+  std::vector<gl::Buffer> level_residue_, level_remaining_, level_mu_;
+  gl::Buffer results_;                 // totals, flags and every level's amplitudes, copied together for one read
+  std::vector<GLuint> level_queries_;  // GL timestamps at each level's start and the last one's end
+  gl::Texture upload_{gl::NoCreate};   // the frame of Run(EquirectImage), reused while the size holds
 };
 
 }  // namespace odvr::lighting

@@ -11,6 +11,8 @@
 #include <cmath>
 #include <filesystem>
 #include <glm/geometric.hpp>
+#include <string>
+#include <vector>
 
 #include "engine/core/error.h"
 #include "engine/image/image_io.h"
@@ -237,6 +239,43 @@ TEST_F(ResidualTransformGpuGL, ConstantFrameAsOnCpu) {
   ResidualTransform cpu;
   TransformReport cpu_report;
   ExpectSameTransform(cpu.Run(frame, &cpu_report), cpu_report, m, report);
+}
+
+// The GPU queues every level and lets lighting_gate.comp stop the ones after a stop: each way a
+// transform ends must give the CPU's model and report, and one transform object must go on
+// working after a frame that stopped early (the gate opens again for the next frame and for the
+// coarse correction). Fine noise around a constant stops once a level leaves less than the
+// threshold (after level 3, measured); a constant frame's level 0 has nothing left to reduce
+// after the constant term, so it is rejected; the sunny sky uses every level.
+TEST_F(ResidualTransformGpuGL, EveryWayTheLevelsEndMatchesCpu) {
+  sphere::EquirectImage noisy(64, 32, 1.f);
+  unsigned state = 12345u;
+  for (float& v : noisy.rgb) {
+    state = state * 1664525u + 1013904223u;
+    v = 1.f + 0.05f * (static_cast<float>(state >> 8) / 16777216.f - 0.5f);
+  }
+  ResidualTransformGpu gpu;
+  ResidualTransform cpu;
+  std::vector<std::string> reasons;
+  std::vector<int> levels_run;
+  for (const sphere::EquirectImage& frame :
+       {noisy, sphere::EquirectImage(128, 64, 0.7f), SunnySky(256, 128), noisy, SunnySky(256, 128)}) {
+    TransformReport gpu_report, cpu_report;
+    const SgLighting g = gpu.Run(frame, &gpu_report);
+    ExpectSameTransform(cpu.Run(frame, &cpu_report), cpu_report, g, gpu_report);
+    reasons.push_back(gpu_report.stop_reason);
+    levels_run.push_back(gpu_report.gpu_levels_run);
+    for (const LevelReport& l : gpu_report.levels) EXPECT_GT(l.ms, 0.0) << "level " << l.level << " timed";
+  }
+  for (std::size_t i = 0; i < reasons.size(); ++i)
+    std::printf("stop: %s; levels run on the GPU %d\n", reasons[i].c_str(), levels_run[i]);
+  EXPECT_NE(reasons[0].find("below threshold after level"), std::string::npos) << reasons[0];
+  EXPECT_EQ(reasons[1], "level 0 does not reduce the residue");
+  EXPECT_EQ(reasons[2], "maximum level reached");
+  // The gate: the levels after the stop did not run.
+  EXPECT_EQ(levels_run[0], 4);
+  EXPECT_EQ(levels_run[1], 1);
+  EXPECT_EQ(levels_run[2], 5);
 }
 
 TEST_F(ResidualTransformGpuGL, NanInfAndNegativePixelsAreClampedAsOnCpu) {
