@@ -1,5 +1,7 @@
 #include "engine/render/triple_product_renderer.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -356,8 +358,9 @@ GroundLitMapLayout GroundLitMapLayoutFor(const visibility::VoxelGridSpec& spec, 
   const glm::dvec2 extent = r_hi - r_lo;
   // Two texels beyond the rectangle's interior span: one on each side.
   layout.spacing = std::max(spec.voxel_size, std::max(extent.x, extent.y) / std::max(1, max_texels - 3));
-  layout.width = static_cast<int>(std::ceil(extent.x / layout.spacing)) + 3;
-  layout.height = static_cast<int>(std::ceil(extent.y / layout.spacing)) + 3;
+  // The quotient may land a rounding above an integer: not one more texel for it.
+  layout.width = static_cast<int>(std::ceil(extent.x / layout.spacing - 1e-9)) + 3;
+  layout.height = static_cast<int>(std::ceil(extent.y / layout.spacing - 1e-9)) + 3;
   layout.origin = r_lo - layout.spacing;
   return layout;
 }
@@ -1154,6 +1157,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       sp.Set("uGroundLitMapOrigin", static_cast<float>(map.origin.x), static_cast<float>(map.origin.y))
           .Set("uGroundLitMapSpacing", static_cast<float>(map.spacing));
       if (map.width > 0) {
+        spdlog::debug("render: the ground's lit fraction on {}x{} texels {:.3f} m apart", map.width, map.height,
+                      map.spacing);
         sp.Set("uGroundTablePass", 2)
             .Use()
             .DispatchCovering(static_cast<unsigned>(map.width), static_cast<unsigned>(map.height),

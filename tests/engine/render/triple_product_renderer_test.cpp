@@ -1027,6 +1027,34 @@ TEST(GroundLitMap, StandsForTheTracesItReplaces) {
   EXPECT_LT(sum_abs / inside, 0.01);
   EXPECT_LT(max_abs, 0.3);
 
+  // A sun 3° up (sunset.exr's): its shadow reaches the catcher's edge, so the texels are the
+  // catcher's width over 128, far wider than a voxel; near the box the read blurs the shadow's edge.
+  detail::PreparedLighting low = l;
+  const double low_elevation = 3 * 3.14159265358979323846 / 180;
+  low.peaks[0].axis = glm::dvec3(std::cos(low_elevation) * 0.8, std::sin(low_elevation), std::cos(low_elevation) * 0.6);
+  const auto low_lit = [&](double x, double z) {
+    return detail::GroundLitFraction(glm::dvec3(x, 0, z), low, true, kGroundLitHalfAngle, visibility::kMaxConeHalfAngle,
+                                     trace);
+  };
+  const detail::GroundLitMapLayout lm = detail::GroundLitMapLayoutFor(spec, low, true, {0, 0}, 30, 128);
+  std::vector<float> low_texels(lm.texels());
+  for (std::size_t t = 0; t < low_texels.size(); ++t)
+    low_texels[t] = static_cast<float>(
+        low_lit(lm.origin.x + static_cast<double>(t % static_cast<std::size_t>(lm.width)) * lm.spacing,
+                lm.origin.y + static_cast<double>(t / static_cast<std::size_t>(lm.width)) * lm.spacing));
+  double low_sum = 0;
+  int low_n = 0;
+  for (int i = 0; i < 100; ++i)
+    for (int j = 0; j < 100; ++j) {
+      const double x = -4 + 8 * (i + 0.37) / 100, z = -4 + 8 * (j + 0.61) / 100;
+      low_sum += std::abs(detail::SampleGroundLitMap(lm, low_texels, x, z) - low_lit(x, z));
+      ++low_n;
+    }
+  std::printf("sun 3 deg up: grid %dx%d at %.3f m, |grid - trace| mean %.4f within 4 m of the box\n", lm.width,
+              lm.height, lm.spacing, low_sum / low_n);
+  EXPECT_LE(std::max(lm.width, lm.height), 128);
+  EXPECT_LT(low_sum / low_n, 0.02);  // measured 0.0091
+
   // Without peak cones the grid is the cube's footprint; a sun on the horizon reaches anywhere.
   const detail::GroundLitMapLayout up_only = detail::GroundLitMapLayoutFor(spec, l, false, {0, 0}, 30, 128);
   EXPECT_LT(up_only.width, m.width);
