@@ -58,6 +58,7 @@ struct BenchRenderOptions {
   bool depth_per_lobe = render::RenderOptions{}.depth_per_lobe;
   double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
   int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
+  int shading_rate = render::RenderOptions{}.shading_rate;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
 };
@@ -295,6 +296,10 @@ Row RenderRow(const render::RenderOptions& base, const Reference& ref, const std
   render::RenderOptions o = base;
   o.supersample = supersample;
   o.supersample_contrast = contrast;
+  // The Monte-Carlo baseline and the supersampled rows shade every pixel; the half-rate rows
+  // judge their blocks at the renderer's contrast (0 would shade every pixel).
+  if (method != "sg" || supersample > 1) o.shading_rate = 1;
+  if (o.shading_rate == 2) o.supersample_contrast = base.supersample_contrast;
   o.lighting_levels = levels;
   o.cone_rings = ConeRingsForCount(cones);
   o.voxel_resolution = voxels;
@@ -688,6 +693,7 @@ int RunBenchRender(BenchRenderOptions o) {
   base.depth_per_lobe = o.depth_per_lobe;
   base.overlap_cutoff = o.overlap_cutoff;
   base.ground_lit_map_texels = o.ground_lit_map;
+  base.shading_rate = o.shading_rate;
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   if (!o.depth_per_lobe) machine += "; --bin-depth";
@@ -695,6 +701,8 @@ int RunBenchRender(BenchRenderOptions o) {
     machine += "; --overlap-cutoff " + std::to_string(o.overlap_cutoff);
   if (o.ground_lit_map != render::RenderOptions{}.ground_lit_map_texels)
     machine += "; --ground-lit-map " + std::to_string(o.ground_lit_map);
+  if (o.shading_rate != render::RenderOptions{}.shading_rate)
+    machine += "; --shading-rate " + std::to_string(o.shading_rate) + " (SG rows of one sample per pixel)";
   // One-at-a-time around the default: every level count, cone count and resolution once.
   std::vector<std::array<int, 3>> configs;
   for (int l : o.levels) configs.push_back({l, kDefaultCones, kDefaultVoxels});
@@ -783,6 +791,9 @@ CommandFn AddBenchRender(CLI::App* sub) {
                   "The ground's lit-fraction grid's texels per side at most (RenderOptions::ground_lit_map_texels; 0: "
                   "traced per cone)")
       ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
+  sub->add_option("--shading-rate", o->shading_rate,
+                  "The SG rows' shading rate (RenderOptions::shading_rate; 2: a pixel per smooth 2x2 block)")
+      ->check(CLI::IsMember({1, 2}));
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchRender(*o); };

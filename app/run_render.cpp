@@ -39,6 +39,7 @@ struct RenderCliOptions {
   bool bin_depth = false;
   double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
   int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
+  int shading_rate = render::RenderOptions{}.shading_rate;
   std::string device = "gpu";
   bool json = false;
   bool composite_only = false;
@@ -87,6 +88,7 @@ int RunRender(const RenderCliOptions& o) {
   options.depth_per_lobe = !o.bin_depth;
   options.overlap_cutoff = o.overlap_cutoff;
   options.ground_lit_map_texels = o.ground_lit_map;
+  options.shading_rate = o.shading_rate;
   options.read_layers = !o.composite_only;
   options.shade_lanes = o.shade_lanes;
   if (o.composite_only && !o.layers.empty())
@@ -223,6 +225,7 @@ int RunRender(const RenderCliOptions& o) {
           {"depth_per_lobe", !o.bin_depth},
           {"overlap_cutoff", o.overlap_cutoff},
           {"ground_lit_map_texels", o.ground_lit_map},
+          {"shading_rate", o.shading_rate},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
           {"ground_pixels_occluded", c.ground_pixels},
@@ -280,6 +283,10 @@ CommandFn AddRender(CLI::App* sub) {
                   "Shade every sample only of pixels whose surfaces differ or whose luminance differs from a "
                   "neighbour's by more than this fraction (0: every pixel)")
       ->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--shading-rate", o->shading_rate,
+                  "2: shade one pixel of each 2x2 block, every pixel only of blocks that are not smooth (by "
+                  "--supersample-contrast), and fill the rest between the shaded pixels")
+      ->check(CLI::IsMember({1, 2}));
   sub->add_option("--camera", o->camera, "px,py,pz,tx,ty,tz,vfov_deg: position, target (world, +Y up, metres)");
   sub->add_option("--material", o->materials,
                   "Override materials: [NAME=]KD,KS,N or [NAME=]MODEL:PARAMS[+MODEL:PARAMS] with MODEL lambert, phong, "

@@ -148,7 +148,13 @@ inline constexpr float kSupersampleNormalCos = 0.9f;
 // coverage or material or turn their normal past kSupersampleNormalCos, or where the centre
 // samples' car luminance in `shaded` bends across it along a row, column or diagonal by more than
 // `contrast` of the largest of the three, or their shadow ratio by more than `contrast`.
+// neighbour_reps (RenderOptions::shading_rate 2, k = 2 over 2×2 blocks): also where the left,
+// upper or upper-left block's centre sample sees another surface, and on the top and left edges.
 std::vector<std::uint8_t> FlagPixels(const GBuffer& g, const RenderResult& shaded, int k, int width, int height,
-                                     float contrast);
+                                     float contrast, bool neighbour_reps = false);
+
+// render_fill.comp on the CPU (RenderOptions::shading_rate 2): in each block whose flag is 0 the
+// pixels other than its lower right are overwritten by the mean of the shaded pixels around them.
+void FillHalfRate(const std::vector<std::uint8_t>& block_flags, RenderResult* r);
 
 }  // namespace odvr::render::detail

@@ -416,13 +416,21 @@ void ResolveSupersampled(const RenderResult& shaded, int k, int width, int heigh
 }
 
 std::vector<std::uint8_t> FlagPixels(const GBuffer& g, const RenderResult& shaded, int k, int width, int height,
-                                     float contrast) {
+                                     float contrast, bool neighbour_reps) {
   const int sw = g.width;
   const auto luma = [](const float* c) { return c[0] * 0.2126f + c[1] * 0.7152f + c[2] * 0.0722f; };
   const auto centre = [&](int x, int y) { return static_cast<std::size_t>(y * k + k / 2) * sw + (x * k + k / 2); };
   std::vector<std::uint8_t> flags(static_cast<std::size_t>(width) * height, 0);
+  // Whether pixel (x, y)'s samples, or its centre sample, lie within the G-buffer: a block cut by
+  // an odd edge (shading_rate 2) is shaded whole, and its centre is no neighbour's to compare.
+  const auto whole = [&](int x, int y) { return x * k + k - 1 < sw && y * k + k - 1 < g.height; };
+  const auto has_centre = [&](int x, int y) { return x * k + k / 2 < sw && y * k + k / 2 < g.height; };
   for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x) {
+      if (!whole(x, y)) {
+        flags[static_cast<std::size_t>(y) * width + x] = 1;
+        continue;
+      }
       const std::size_t c = centre(x, y);
       const float material = g.position[4 * c + 3];
       const glm::vec3 n(g.normal[4 * c], g.normal[4 * c + 1], g.normal[4 * c + 2]);
@@ -434,11 +442,21 @@ std::vector<std::uint8_t> FlagPixels(const GBuffer& g, const RenderResult& shade
           if (g.position[4 * s + 3] != material || (material > 0 && glm::dot(ns, n) < kSupersampleNormalCos))
             flag = true;
         }
+      if (neighbour_reps) {
+        if (x == 0 || y == 0) flag = true;
+        for (int i = 1; i < 4 && !flag; ++i) {
+          const std::size_t s = centre(x - (i & 1), y - (i >> 1));
+          const glm::vec3 ns(g.normal[4 * s], g.normal[4 * s + 1], g.normal[4 * s + 2]);
+          if (g.position[4 * s + 3] != material || (material > 0 && glm::dot(ns, n) < kSupersampleNormalCos))
+            flag = true;
+        }
+      }
       const float car = luma(&shaded.car.rgb[3 * c]), shadow = luma(&shaded.shadow.rgb[3 * c]);
       constexpr int kDirections[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
       for (const auto& d : kDirections) {
         const int ax = x - d[0], ay = y - d[1], bx = x + d[0], by = y + d[1];
         if (std::min({ax, ay, bx, by}) < 0 || std::max(ax, bx) >= width || std::max(ay, by) >= height) continue;
+        if (!has_centre(ax, ay) || !has_centre(bx, by)) continue;
         const std::size_t a = centre(ax, ay), b = centre(bx, by);
         const float ca = luma(&shaded.car.rgb[3 * a]), cb = luma(&shaded.car.rgb[3 * b]);
         if (std::abs(ca + cb - 2.0f * car) > contrast * std::max({car, ca, cb}) ||
@@ -448,6 +466,31 @@ std::vector<std::uint8_t> FlagPixels(const GBuffer& g, const RenderResult& shade
       flags[static_cast<std::size_t>(y) * width + x] = flag ? 1 : 0;
     }
   return flags;
+}
+
+void FillHalfRate(const std::vector<std::uint8_t>& block_flags, RenderResult* r) {
+  const int w = r->car.width, h = r->car.height, bw = (w + 1) / 2;
+  RenderResult& out = *r;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int bx = x / 2, by = y / 2, ox = x - 2 * bx, oy = y - 2 * by;
+      if ((ox == 1 && oy == 1) || block_flags[static_cast<std::size_t>(by) * bw + bx]) continue;
+      const int lx = 2 * (bx - 1 + ox) + 1, ly = 2 * (by - 1 + oy) + 1, hx = 2 * bx + 1, hy = 2 * by + 1;
+      const std::size_t at[4] = {static_cast<std::size_t>(ly) * w + lx, static_cast<std::size_t>(ly) * w + hx,
+                                 static_cast<std::size_t>(hy) * w + lx, static_cast<std::size_t>(hy) * w + hx};
+      const std::size_t i = static_cast<std::size_t>(y) * w + x;
+      // The shaded pixels have odd coordinates and this one does not: none is read after it is written.
+      for (int c = 0; c < 3; ++c) {
+        out.car.rgb[3 * i + c] = 0.25f * (out.car.rgb[3 * at[0] + c] + out.car.rgb[3 * at[1] + c] +
+                                          out.car.rgb[3 * at[2] + c] + out.car.rgb[3 * at[3] + c]);
+        out.shadow.rgb[3 * i + c] = 0.25f * (out.shadow.rgb[3 * at[0] + c] + out.shadow.rgb[3 * at[1] + c] +
+                                             out.shadow.rgb[3 * at[2] + c] + out.shadow.rgb[3 * at[3] + c]);
+      }
+      out.car_alpha[i] =
+          0.25f * (out.car_alpha[at[0]] + out.car_alpha[at[1]] + out.car_alpha[at[2]] + out.car_alpha[at[3]]);
+      out.ground_mask[i] =
+          0.25f * (out.ground_mask[at[0]] + out.ground_mask[at[1]] + out.ground_mask[at[2]] + out.ground_mask[at[3]]);
+    }
 }
 
 }  // namespace odvr::render::detail

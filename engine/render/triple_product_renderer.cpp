@@ -282,6 +282,17 @@ void SetConeTraceUniforms(gl::Program& program, const visibility::VoxelGridSpec&
       .Set("uConePartialExponent", static_cast<float>(trace.partial_opacity_exponent));
 }
 
+// RenderOptions::shading_rate 2: 1 for each pixel that was shaded (the lower right of every
+// 2×2 block, every pixel of a flagged block), 0 for the filled ones.
+std::vector<std::uint8_t> HalfRateShaded(const std::vector<std::uint8_t>& block_flags, int w, int h) {
+  std::vector<std::uint8_t> shaded(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      shaded[static_cast<std::size_t>(y) * w + x] =
+          block_flags[static_cast<std::size_t>(y / 2) * ((w + 1) / 2) + x / 2] || (x % 2 == 1 && y % 2 == 1) ? 1 : 0;
+  return shaded;
+}
+
 }  // namespace
 
 namespace detail {
@@ -469,6 +480,12 @@ void RenderOptions::Check() const {
                 "must be in 1.." + std::to_string(kMaxSupersample) + ", got " + std::to_string(supersample));
   if (!(supersample_contrast >= 0 && supersample_contrast <= 1))
     throw Error("render supersample_contrast", "must be in [0, 1]");
+  if (shading_rate != 1 && shading_rate != 2)
+    throw Error("render shading_rate", "must be 1 or 2, got " + std::to_string(shading_rate));
+  if (shading_rate == 2 && supersample > 1)
+    throw Error("render shading_rate", "2 (a pixel per 2x2 block) and supersample > 1 exclude each other");
+  if (shading_rate == 2 && monte_carlo_samples > 0)
+    throw Error("render shading_rate", "2 is for the SG shader: the Monte-Carlo baseline shades every pixel");
   visibility::ConeSubsampleOptions c = cones;
   c.rings = cone_rings;
   c.Check();
@@ -536,10 +553,14 @@ struct TripleProductRenderer::Impl {
   // render_shade.comp's GroundTable: per cone of the ground's lobe, per traced peak, and the
   // unshadowed sum, the lighting the ground sees through it (one vec4 each).
   gl::Buffer ground_table{gl::NoCreate};
-  gl::Buffer ground_lit_map{gl::NoCreate};  // render_shade.comp's GroundLitMap (RenderOptions::ground_lit_map_texels)
-  gl::Buffer count_totals{gl::NoCreate};    // RenderOptions::read_layers off: render_counts.comp's group sums
-  gl::ReadbackBuffer readback;              // the layers and counts on their way to the CPU
-  std::array<GLuint, 5> stage_queries{};    // GL timestamps between the GPU path's stages
+  gl::Buffer ground_lit_map{gl::NoCreate};
+  // RenderOptions::shading_rate 2: per 2×2 block its flag, and the flagged ones listed (a count,
+  // then the blocks' indices), as pixel_flags and flagged_list are for supersampling.
+  gl::Buffer block_flags{gl::NoCreate}, block_list{gl::NoCreate};
+  gl::Program fill_program{gl::NoCreate};  // render_shade.comp's GroundLitMap (RenderOptions::ground_lit_map_texels)
+  gl::Buffer count_totals{gl::NoCreate};   // RenderOptions::read_layers off: render_counts.comp's group sums
+  gl::ReadbackBuffer readback;             // the layers and counts on their way to the CPU
+  std::array<GLuint, 5> stage_queries{};   // GL timestamps between the GPU path's stages
 
   Impl() = default;
   Impl(const Impl&) = delete;
@@ -626,6 +647,10 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   if (options_.supersample > 1) {
     im.resolve_program = gl::ShaderLibrary::Compute("render_resolve.comp");
     im.flag_program = gl::ShaderLibrary::Compute("render_flag.comp");
+  }
+  if (options_.shading_rate == 2) {
+    im.flag_program = gl::ShaderLibrary::Compute("render_flag.comp");
+    im.fill_program = gl::ShaderLibrary::Compute("render_fill.comp");
   }
   if (options_.monte_carlo_samples > 0) im.mc_program = gl::ShaderLibrary::Compute("render_mc.comp");
   im.white = gl::Texture::Create2D(GL_RGBA8, 1, 1);
@@ -928,6 +953,11 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   const int sw = shaded_camera.width, sh = shaded_camera.height;
   // Adaptive supersampling (RenderOptions::supersample_contrast) in the SG shader only.
   const bool adaptive = k > 1 && options_.supersample_contrast > 0 && !monte_carlo;
+  // RenderOptions::shading_rate 2: a pixel of each 2×2 block, then every pixel of the blocks that
+  // need it, the rest filled.
+  const bool half_rate = options_.shading_rate == 2;
+  const int bw = (w + 1) / 2, bh = (h + 1) / 2;  // a block cut by an odd edge is shaded whole
+  long long half_rate_shaded = 0;                // pixels shaded, the rest filled
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
   if (sw > max_size || sh > max_size)
@@ -1166,7 +1196,72 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
       }
       sp.Set("uGroundTablePass", 0).Set("uOutWidth", w).Set("uFactor", k).Set("uAdaptivePass", 0);
-      if (adaptive) {
+      if (half_rate) {
+        const std::size_t blocks = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
+        if (!im.block_flags || im.block_flags.size() < blocks * 4) {
+          im.block_flags = gl::Buffer();
+          im.block_flags.Allocate(blocks * 4);
+          im.block_list = gl::Buffer();
+          im.block_list.Allocate(4 + blocks * 4);
+        }
+        // The pixels the passes leave unshaded read as empty in the counts until they are filled.
+        glClearNamedBufferData(im.counts.id(), GL_RGBA32UI, GL_RGBA_INTEGER, GL_UNSIGNED_INT, nullptr);
+        glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        sp.Set("uOutWidth", bw)
+            .Set("uFactor", 2)
+            .Set("uSampleStride", 2)
+            .Set("uSamplePhase", 1)
+            .Use()
+            .DispatchCovering(static_cast<unsigned>(bw), static_cast<unsigned>(bh),
+                              static_cast<unsigned>(options_.shade_lanes));
+        glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        gl::Program& fp = im.flag_program;
+        glProgramUniform2i(fp.id(), fp.Uniform("uSize"), bw, bh);
+        fp.Set("uFactor", 2)
+            .Set("uContrast", static_cast<float>(options_.supersample_contrast))
+            .Set("uNormalCos", detail::kSupersampleNormalCos)
+            .Set("uNeighbourReps", 1);
+        im.g_position.BindImage(0, GL_READ_ONLY);
+        im.g_normal.BindImage(1, GL_READ_ONLY);
+        im.car_layer.BindImage(2, GL_READ_ONLY);
+        im.shadow_layer.BindImage(3, GL_READ_ONLY);
+        im.block_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
+        im.block_list.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
+        const std::uint32_t zero = 0;
+        im.block_list.SubData(0, 4, &zero);
+        fp.Use().DispatchCovering(static_cast<unsigned>(bw), static_cast<unsigned>(bh));
+        glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        std::uint32_t listed = 0;
+        im.block_list.Read(0, 4, &listed);
+        // Every block once, three more pixels of each flagged whole block, and every pixel of
+        // the blocks an odd edge cuts (all flagged).
+        const long long whole = static_cast<long long>(w / 2) * (h / 2);
+        half_rate_shaded = whole + 3LL * (listed - (static_cast<long long>(blocks) - whole)) +
+                           (static_cast<long long>(pixels) - 4 * whole);
+        const long long list_samples = 3LL * listed;
+        constexpr int kListPitch = 256;
+        im.g_position.BindImage(0, GL_READ_ONLY);
+        im.g_normal.BindImage(1, GL_READ_ONLY);
+        im.g_base.BindImage(2, GL_READ_ONLY);
+        im.car_layer.BindImage(3, GL_WRITE_ONLY);
+        im.shadow_layer.BindImage(4, GL_WRITE_ONLY);
+        sp.Set("uAdaptivePass", 1)
+            .Set("uListPitch", kListPitch)
+            .Set("uListSamples", static_cast<int>(list_samples))
+            .Set("uSampleStride", 1)
+            .Set("uSamplePhase", 0);
+        if (list_samples > 0)
+          sp.Use().DispatchCovering(kListPitch, static_cast<unsigned>((list_samples + kListPitch - 1) / kListPitch),
+                                    static_cast<unsigned>(options_.shade_lanes));
+        glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        gl::Program& fill = im.fill_program;
+        glProgramUniform2i(fill.id(), fill.Uniform("uBlocks"), bw, bh);
+        glProgramUniform2i(fill.id(), fill.Uniform("uSize"), w, h);
+        im.car_layer.BindImage(0, GL_READ_WRITE);
+        im.shadow_layer.BindImage(1, GL_READ_WRITE);
+        im.block_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
+        fill.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
+      } else if (adaptive) {
         // The samples a pass leaves unshaded must read as empty in the counts and the coverage.
         glClearNamedBufferData(im.counts.id(), GL_RGBA32UI, GL_RGBA_INTEGER, GL_UNSIGNED_INT, nullptr);
         glClearTexImage(im.shaded_car.id(), 0, GL_RGBA, GL_FLOAT, nullptr);
@@ -1299,6 +1394,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
           detail::SumCountsOnGpu(im.counts_program, im.counts, adaptive ? &im.pixel_flags : nullptr, im.count_totals,
                                  k > 1 ? im.shaded_car : im.car_layer, sw, sh, static_cast<int>(pixels));
       if (k > 1 && !adaptive) gpu_sums->pixels_sampled_fully = static_cast<long long>(pixels);
+      if (half_rate) gpu_sums->pixels_sampled_fully = half_rate_shaded;
     } else {
       out.car = to_rgb(rgba(im.car_layer), &out.car_alpha);
       out.shadow = to_rgb(rgba(im.shadow_layer), &out.ground_mask);
@@ -1311,6 +1407,10 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       if (adaptive) {
         const auto flags = im.pixel_flags.Read<std::uint32_t>(pixels);
         out.sampled_fully.assign(flags.begin(), flags.end());
+      } else if (half_rate) {
+        const auto flags = im.block_flags.Read<std::uint32_t>(static_cast<std::size_t>(bw) * bh);
+        std::vector<std::uint8_t> block(flags.begin(), flags.end());
+        out.sampled_fully = HalfRateShaded(block, w, h);
       } else if (k > 1) {
         out.sampled_fully.assign(pixels, 1);
       }
@@ -1362,6 +1462,16 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       }
       sample_alpha_storage = std::move(shaded.car_alpha);
       sample_alpha = &sample_alpha_storage;
+    } else if (half_rate) {
+      // Every pixel is shaded here; the flags pick the blocks the GPU shades whole, and the other
+      // blocks' pixels are filled as render_fill.comp fills them, out of the counts.
+      detail::ShadeReference(in, &out, &counts);
+      const std::vector<std::uint8_t> block =
+          detail::FlagPixels(g, out, 2, bw, bh, static_cast<float>(options_.supersample_contrast), true);
+      detail::FillHalfRate(block, &out);
+      out.sampled_fully = HalfRateShaded(block, w, h);
+      for (std::size_t i = 0; i < pixels; ++i)
+        if (!out.sampled_fully[i]) counts[i] = {};
     } else {
       detail::ShadeReference(in, &out, &counts);
     }

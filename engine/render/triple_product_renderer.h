@@ -180,6 +180,14 @@ struct RenderOptions {
   // every-sample one's within 0.001, for 1.3–2.2× less shading time; the Monte-Carlo baseline
   // always shades every sample.
   double supersample_contrast = 0.05;
+  // Pixels shaded per pixel of the output, inverted: 1 shades every pixel; 2 shades one pixel of
+  // each 2×2 block (its lower right) first, then every pixel of the blocks that need it — by
+  // render_flag.comp's tests at supersample_contrast, and where a neighbouring block's shaded
+  // pixel, which the fill reads, sees another surface — and fills the other blocks' pixels
+  // midway between the shaded ones (render_fill.comp): a smooth car body is shaded once per
+  // block. Only without supersampling and the Monte-Carlo baseline. A block an odd width or height
+  // cuts is shaded whole.
+  int shading_rate = 1;
   // What a GPU render reads back. true: every layer (car, shadow, background, composite) and the
   // counts per shaded sample, summed on the CPU. false: the composite alone and the counts summed
   // on the GPU (render_counts.comp); RenderResult's other layers stay empty. A player shows only
@@ -210,7 +218,8 @@ struct RenderCounts {
   double cones_per_car_pixel = 0;    // traced, lobe cones and peak cones
   double sgs_per_car_pixel = 0;      // lighting SGs touched, summed over the lobes
   double triples_per_car_pixel = 0;  // lobe × cone × SG integrals evaluated (0 where unoccluded)
-  int pixels_sampled_fully = 0;      // supersample > 1: pixels whose every sample was shaded
+  int pixels_sampled_fully = 0;      // supersample > 1: pixels whose every sample was shaded;
+                                     // shading_rate 2: pixels shaded (the rest were filled)
   long long cones_total = 0;         // over every pixel, ground included
   long long triples_total = 0;       // a ground pixel counts its cones' weighted sum (the ground table)
 };
@@ -231,7 +240,8 @@ struct RenderResult {
   sphere::EquirectImage background;  // what the car is composited over
   sphere::EquirectImage composite;
   // supersample > 1: 1 where every sample of the pixel was shaded (RenderOptions::
-  // supersample_contrast), width × height; empty otherwise.
+  // supersample_contrast), width × height; shading_rate 2: 1 where the pixel was shaded, 0 where
+  // it was filled; empty otherwise.
   std::vector<std::uint8_t> sampled_fully;
   RenderCounts counts;
   RenderTimings ms;

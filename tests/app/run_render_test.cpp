@@ -123,6 +123,23 @@ TEST(RunRender, ListOptionsReachTheRenderer) {
   EXPECT_NE(bad_grid.err.find("--ground-lit-map"), std::string::npos) << bad_grid.err;
 }
 
+// --shading-rate 2 shades one pixel of each smooth 2x2 block: fewer pixels shaded, the option
+// echoed in the JSON, and only 1 or 2 accepted.
+TEST(RunRender, HalfShadingRateShadesFewerPixels) {
+  if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
+  ScratchDir d("run_render_rate");
+  const CliRun r = RunOdvr("render " + kArgs + " --size 96x54 --voxels 64 --shading-rate 2 --json --out " +
+                           (d.dir / "half.png").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json c = nlohmann::json::parse(r.out).at("counts");
+  EXPECT_EQ(c.at("shading_rate").get<int>(), 2);
+  EXPECT_GT(c.at("pixels_sampled_fully").get<int>(), 96 * 54 / 4);
+  EXPECT_LT(c.at("pixels_sampled_fully").get<int>(), 96 * 54);
+  const CliRun bad = RunOdvr("render " + kArgs + " --size 64x36 --shading-rate 3 --out " + (d.dir / "x.png").string());
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--shading-rate"), std::string::npos) << bad.err;
+}
+
 TEST(RunRender, CpuAndGpuAgree) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_dev");

@@ -172,6 +172,19 @@ TEST(TripleProductRenderer, OptionsAreChecked) {
     bad.overlap_cutoff = c;
     EXPECT_THROW(bad.Check(), Error) << c;
   }
+  for (int rate : {0, 3, 4}) {
+    RenderOptions bad;
+    bad.shading_rate = rate;
+    EXPECT_THROW(bad.Check(), Error) << rate;
+  }
+  RenderOptions half_and_supersampled;
+  half_and_supersampled.shading_rate = 2;
+  half_and_supersampled.supersample = 2;
+  EXPECT_THROW(half_and_supersampled.Check(), Error);
+  RenderOptions half_and_mc;
+  half_and_mc.shading_rate = 2;
+  half_and_mc.monte_carlo_samples = 16;
+  EXPECT_THROW(half_and_mc.Check(), Error);
 }
 
 // Cycles' default pixel filter: Blackman-Harris over 1.5 output pixels, 1 at the pixel's centre,
@@ -310,12 +323,14 @@ TEST_F(TripleProductRendererGL, CompositeOnlyReadsBackTheSameImageAndCounts) {
   struct Mode {
     int k;
     double contrast;
+    int shading_rate = 1;
   };
-  for (const Mode mode : {Mode{1, 0.0}, Mode{2, 0.0}, Mode{2, 0.05}}) {
+  for (const Mode mode : {Mode{1, 0.0}, Mode{2, 0.0}, Mode{2, 0.05}, Mode{1, 0.05, 2}}) {
     RenderOptions o;
     o.voxel_resolution = 64;
     o.supersample = mode.k;
     o.supersample_contrast = mode.contrast;
+    o.shading_rate = mode.shading_rate;
     TripleProductRenderer every(SphereAndBox(), glm::dmat4(1.0), o);
     o.read_layers = false;
     TripleProductRenderer composite_only(SphereAndBox(), glm::dmat4(1.0), o);
@@ -1102,6 +1117,60 @@ TEST_F(TripleProductRendererGL, GroundLitMapShadesAsTheTracesDo) {
   EXPECT_LT(d.mean_rel, 0.005);
   EXPECT_LT(g.mean_rel, 0.01);
   EXPECT_LT(g.p99_rel, 0.05);
+}
+
+// RenderOptions::shading_rate 2: one pixel of each smooth 2×2 block shaded, the rest filled
+// between shaded pixels (render_fill.comp). On the glossy sphere and box under a sunny sky it
+// shades fewer pixels, stays close to shading every pixel, and the GPU's flags and fill are the
+// CPU reference's (detail::FlagPixels with the neighbours' pixels, detail::FillHalfRate). At an
+// odd size the blocks the edges cut are shaded whole, and the GPU still agrees with the CPU.
+TEST_F(TripleProductRendererGL, HalfRateShadingFillsOnlySmoothBlocks) {
+  RenderOptions full;
+  full.voxel_resolution = 64;
+  RenderOptions half = full;
+  half.shading_rate = 2;
+  TripleProductRenderer r_full(SphereAndBox(), glm::dmat4(1.0), full), r_half(SphereAndBox(), glm::dmat4(1.0), half);
+  r_full.SetLighting(SunnySky());
+  r_half.SetLighting(SunnySky());
+  const RenderResult every = r_full.Render(View(), ShadeDevice::kGpu);
+  const RenderResult gpu = r_half.Render(View(), ShadeDevice::kGpu), cpu = r_half.Render(View(), ShadeDevice::kCpu);
+  const int pixels = kW * kH;
+  const Diff to_full = Compare(gpu.car, every.car, every.car_alpha),
+             to_cpu = Compare(gpu.car, cpu.car, every.car_alpha);
+  double shadow_diff = 0;
+  for (std::size_t i = 0; i < gpu.shadow.rgb.size(); ++i)
+    shadow_diff = std::max(shadow_diff, static_cast<double>(std::abs(gpu.shadow.rgb[i] - every.shadow.rgb[i])));
+  std::size_t flags_differ = 0, filled = 0;
+  for (std::size_t i = 0; i < gpu.sampled_fully.size(); ++i) {
+    flags_differ += gpu.sampled_fully[i] != cpu.sampled_fully[i];
+    filled += gpu.sampled_fully[i] == 0;
+  }
+  std::printf(
+      "half rate: %d of %d pixels shaded (%zu filled); car to every pixel shaded mean %.4f p99 %.4f rel, "
+      "shadow |d| max %.4f; GPU vs CPU mean %.4f, shaded flags differ at %zu pixels\n",
+      gpu.counts.pixels_sampled_fully, pixels, filled, to_full.mean_rel, to_full.p99_rel, shadow_diff, to_cpu.mean_rel,
+      flags_differ);
+  ASSERT_EQ(gpu.sampled_fully.size(), static_cast<std::size_t>(pixels));
+  EXPECT_EQ(gpu.counts.pixels_sampled_fully, pixels - static_cast<int>(filled));
+  EXPECT_LT(gpu.counts.pixels_sampled_fully, pixels * 6 / 10);
+  EXPECT_EQ(gpu.counts.car_pixels, every.counts.car_pixels);
+  EXPECT_LT(to_full.mean_rel, 0.01);
+  EXPECT_LT(to_cpu.mean_rel, 0.01);
+  EXPECT_LT(flags_differ, static_cast<std::size_t>(pixels / 100));
+
+  const PinholeCamera odd = View(kW + 1, kH + 1);
+  const RenderResult odd_gpu = r_half.Render(odd, ShadeDevice::kGpu), odd_cpu = r_half.Render(odd, ShadeDevice::kCpu);
+  const Diff odd_diff = Compare(odd_gpu.car, odd_cpu.car, odd_cpu.car_alpha);
+  int edge_filled = 0;
+  for (int y = 0; y < kH + 1; ++y)
+    for (int x = 0; x < kW + 1; ++x)
+      if ((x == kW || y == kH) && !odd_gpu.sampled_fully[static_cast<std::size_t>(y) * (kW + 1) + x]) ++edge_filled;
+  std::printf("odd size %dx%d: %d pixels shaded, GPU vs CPU mean %.4f, edge pixels filled %d\n", kW + 1, kH + 1,
+              odd_gpu.counts.pixels_sampled_fully, odd_diff.mean_rel, edge_filled);
+  EXPECT_EQ(edge_filled, 0);
+  EXPECT_LT(odd_diff.mean_rel, 0.01);
+  EXPECT_EQ(odd_gpu.counts.pixels_sampled_fully,
+            static_cast<int>(std::count(odd_gpu.sampled_fully.begin(), odd_gpu.sampled_fully.end(), 1)));
 }
 
 TEST_F(TripleProductRendererGL, MoreLevelsAndMoreConesConverge) {
