@@ -40,6 +40,7 @@ AugmentedOptions SceneOptions(const PlayerOptions& o) {
   a.lighting_levels = o.lighting_levels;
   a.voxel_resolution = o.voxels;
   a.supersample = o.supersample;
+  a.shading_rate = o.shading_rate;
   a.vfov_deg = std::clamp(o.view.fov_deg, 30.0, 150.0);
   a.exposure = o.exposure;
   return a;

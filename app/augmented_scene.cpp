@@ -124,6 +124,7 @@ void AugmentedOptions::Check() const {
     throw UsageError("--voxels", "must be 64, 128 or 256");
   if (supersample < 1 || supersample > render::kMaxSupersample)
     throw UsageError("--supersample", "must be 1.." + std::to_string(render::kMaxSupersample));
+  if (shading_rate != 1 && shading_rate != 2) throw UsageError("--shading-rate", "must be 1 or 2");
   if (!(vfov_deg >= 10 && vfov_deg <= 150)) throw UsageError("--fov", "must be 10..150 degrees");
   if (!(exposure > 0)) throw UsageError("--exposure", "must be positive");
   if (lighting_width < 16 || lighting_width % 2) throw UsageError("lighting width", "must be even and at least 16");
@@ -220,6 +221,7 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
   ro.voxel_resolution = options_.voxel_resolution;
   ro.cone_rings = options_.cone_rings;
   ro.supersample = options_.supersample;
+  ro.shading_rate = options_.supersample > 1 ? 1 : options_.shading_rate;
   ro.read_layers = false;  // the player shows the composite alone
   ro.read_composite = !options_.composite_on_gpu;
   im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);

@@ -59,7 +59,8 @@ struct AugmentedOptions {
   int lighting_width = 256;
   int voxel_resolution = 64;
   int cone_rings = 1;
-  int supersample = 1;  // render::RenderOptions::supersample (adaptive, its default contrast)
+  int supersample = 1;   // render::RenderOptions::supersample (adaptive, its default contrast)
+  int shading_rate = 1;  // render::RenderOptions::shading_rate (1 while supersample > 1)
   double vfov_deg = 70;
   double exposure = 1.0;
   std::size_t frame_cache = 48;  // decoded panoramas kept (8-bit)

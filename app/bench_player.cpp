@@ -28,6 +28,7 @@ struct BenchPlayerOptions {
   std::string drive = "W:2s,A:1s";
   std::string out = "docs/benchmarks/player.md";
   int levels = 4, voxels = 64;
+  int shading_rate = PlayerOptions{}.shading_rate;
   bool live = false;
   CLI::Option* size_option = nullptr;
 };
@@ -63,6 +64,7 @@ int RunBenchPlayer(const BenchPlayerOptions& b) {
   o.drive = b.drive;
   o.lighting_levels = b.levels;
   o.voxels = b.voxels;
+  o.shading_rate = b.shading_rate;
   o.out_dir = (std::filesystem::temp_directory_path() / ("odvr_bench_player_" + std::to_string(::getpid()))).string();
   std::cerr << "bench player: " << o.headless_frames << " frames at " << b.size << " on " << gl_renderer << "\n";
   PlayerReport r = RunAugmentedHeadless(o);
@@ -126,6 +128,7 @@ int RunBenchLive(const BenchPlayerOptions& b, const std::string& gl_renderer) {
     o.player.headless_frames = b.frames + 1;
     o.player.lighting_levels = b.levels;
     o.player.voxels = b.voxels;
+    o.player.shading_rate = b.shading_rate;
     o.player.out_dir =
         (std::filesystem::temp_directory_path() / ("odvr_bench_live_" + std::to_string(::getpid()))).string();
     std::cerr << "bench player --live: " << o.player.headless_frames << " frames at " << size << " on " << gl_renderer
@@ -202,6 +205,9 @@ CommandFn AddBenchPlayer(CLI::App* sub) {
   sub->add_option("--drive", b->drive, "Scripted drive")->capture_default_str();
   sub->add_option("--levels", b->levels, "Lighting levels")->capture_default_str();
   sub->add_option("--voxels", b->voxels, "Voxels per side")->capture_default_str();
+  sub->add_option("--shading-rate", b->shading_rate, "The car's shading rate (1: every pixel, 2: per smooth 2x2 block)")
+      ->check(CLI::IsMember({1, 2}))
+      ->capture_default_str();
   sub->add_option("--out", b->out, "Markdown table")->capture_default_str();
   return [b] { return RunBenchPlayer(*b); };
 }

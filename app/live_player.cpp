@@ -42,6 +42,7 @@ LiveSceneOptions SceneOptions(const LivePlayOptions& o) {
   s.lighting_levels = p.lighting_levels;
   s.voxel_resolution = p.voxels;
   s.supersample = p.supersample;
+  s.shading_rate = p.shading_rate;
   s.vfov_deg = std::clamp(p.view.fov_deg, 30.0, 150.0);
   s.exposure = p.exposure;
   return s;

@@ -39,7 +39,8 @@ struct LiveSceneOptions {
   int lighting_levels = 4;
   int lighting_width = 256;  // the panorama is area-resampled to this width for the lighting
   int voxel_resolution = 64;
-  int supersample = 1;  // render::RenderOptions::supersample (adaptive, its default contrast)
+  int supersample = 1;   // render::RenderOptions::supersample (adaptive, its default contrast)
+  int shading_rate = 1;  // render::RenderOptions::shading_rate (1 while supersample > 1)
   double vfov_deg = 90;
   double exposure = 1.0;
   // A window's frames with the car stay on the GPU: LiveFrame::image is left empty and

@@ -28,10 +28,13 @@ struct PlayerOptions {
   int lighting_levels = 4;     // HEALPix levels of the car's light
   int voxels = 64;             // visibility grid per side
   int supersample = 1;         // the car's samples per pixel along each axis (adaptive, 1..4)
-  bool panel = false;          // window, augmented: the car panel starts open
-  bool trace = false;          // window: a JSON line on stdout when ready and per F12 screenshot
-  std::string resize;          // window: WxH to resize to halfway through --quit-after (tests)
-  void Check() const;          // throws odvr::UsageError
+  // render::RenderOptions::shading_rate for the car: 2 shades one pixel of each smooth 2×2 block
+  // (a frame's time, not its picture: docs/benchmarks/render_accuracy.md); 1 with supersample > 1.
+  int shading_rate = 2;
+  bool panel = false;  // window, augmented: the car panel starts open
+  bool trace = false;  // window: a JSON line on stdout when ready and per F12 screenshot
+  std::string resize;  // window: WxH to resize to halfway through --quit-after (tests)
+  void Check() const;  // throws odvr::UsageError
 };
 
 // Per-stage milliseconds of the last frame (the overlay and --json).

@@ -128,6 +128,10 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_option("--supersample", o.supersample,
                   "Car: KxK samples per pixel where a pixel needs them (1..4; K² the car's shading at most)")
       ->capture_default_str();
+  sub->add_option("--shading-rate", o.shading_rate,
+                  "Car: 2 shades one pixel of each smooth 2x2 block and fills the rest, 1 every pixel")
+      ->check(CLI::IsMember({1, 2}))
+      ->capture_default_str();
   sub->add_flag("--no-car", c->no_car, "Play the demo without its car");
   sub->add_option("--resize", o.resize, "Window: resize to WxH halfway through --quit-after (tests)");
   sub->add_flag("--panel", o.panel, "Window: open the car's material and light panel at the start");
