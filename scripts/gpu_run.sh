@@ -98,6 +98,8 @@ elif [ "$quick" = shade ]; then
   render 720p_cutoff1e-2 --size 1280x720 --composite-only --overlap-cutoff 0.01
   render 720p_v64_l4 --size 1280x720 --composite-only --voxels 64 --levels 4
   render 720p_traced_ground --size 1280x720 --composite-only --ground-lit-map 0
+  render 720p_rate2 --size 1280x720 --composite-only --shading-rate 2
+  render 720p_v64_l4_rate2 --size 1280x720 --composite-only --voxels 64 --levels 4 --shading-rate 2
   render 720p_v64_l4_traced_ground --size 1280x720 --composite-only --voxels 64 --levels 4 --ground-lit-map 0
   for v in "${VARIANTS:-$bundle/var}"/*/; do
     [ -d "$v" ] || continue
@@ -108,6 +110,8 @@ elif [ "$quick" = shade ]; then
   step player 60 "$odvr" bench player --size 1280x720 --frames 30 --out "$results/player.md"
   step player_l5 60 "$odvr" bench player --size 1280x720 --frames 30 --levels 5 --voxels 128 \
     --out "$results/player_l5.md"
+  step player_rate1 60 "$odvr" bench player --size 1280x720 --frames 30 --shading-rate 1 \
+    --out "$results/player_rate1.md"
   step player_live 60 "$odvr" bench player --live --size 1280x720 --frames 30 --out "$results/player_live.md"
   step render_hd 60 "$odvr" bench render --only sunset_glossy --levels 5 --cones 7 --voxels 128 --mc-samples 16 \
     --no-lobe-modes --no-ground-bounce --out "$results/render_hd"
