@@ -1195,6 +1195,49 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
                               static_cast<unsigned>(options_.shade_lanes));
         glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
       }
+      // render_flag.comp over flag_w × flag_h pixels (blocks, at shading_rate 2) of factor²
+      // samples each, their flags into `flags` and the flagged ones into `list`; then
+      // render_shade.comp shades the listed ones' other samples into car and shadow. Returns how
+      // many were listed.
+      const auto flag_and_shade_listed = [&](gl::Buffer& flags, gl::Buffer& list, int flag_w, int flag_h, int factor,
+                                             gl::Texture& car, gl::Texture& shadow, bool neighbour_reps) {
+        gl::Program& fp = im.flag_program;
+        glProgramUniform2i(fp.id(), fp.Uniform("uSize"), flag_w, flag_h);
+        fp.Set("uFactor", factor)
+            .Set("uContrast", static_cast<float>(options_.supersample_contrast))
+            .Set("uNormalCos", detail::kSupersampleNormalCos)
+            .Set("uNeighbourReps", neighbour_reps ? 1 : 0);
+        im.g_position.BindImage(0, GL_READ_ONLY);
+        im.g_normal.BindImage(1, GL_READ_ONLY);
+        car.BindImage(2, GL_READ_ONLY);
+        shadow.BindImage(3, GL_READ_ONLY);
+        flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
+        list.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
+        const std::uint32_t zero = 0;
+        list.SubData(0, 4, &zero);
+        fp.Use().DispatchCovering(static_cast<unsigned>(flag_w), static_cast<unsigned>(flag_h));
+        glMemoryBarrier(GL_ALL_BARRIER_BITS);
+        // The count sizes the second pass (a 4-byte read that waits for the flags; an indirect
+        // dispatch would spare a player that wait).
+        std::uint32_t listed = 0;
+        list.Read(0, 4, &listed);
+        const long long list_samples = static_cast<long long>(listed) * (factor * factor - 1);
+        constexpr int kListPitch = 256;
+        im.g_position.BindImage(0, GL_READ_ONLY);
+        im.g_normal.BindImage(1, GL_READ_ONLY);
+        im.g_base.BindImage(2, GL_READ_ONLY);
+        car.BindImage(3, GL_WRITE_ONLY);
+        shadow.BindImage(4, GL_WRITE_ONLY);
+        sp.Set("uAdaptivePass", 1)
+            .Set("uListPitch", kListPitch)
+            .Set("uListSamples", static_cast<int>(list_samples))
+            .Set("uSampleStride", 1)
+            .Set("uSamplePhase", 0);
+        if (list_samples > 0)
+          sp.Use().DispatchCovering(kListPitch, static_cast<unsigned>((list_samples + kListPitch - 1) / kListPitch),
+                                    static_cast<unsigned>(options_.shade_lanes));
+        return listed;
+      };
       sp.Set("uGroundTablePass", 0).Set("uOutWidth", w).Set("uFactor", k).Set("uAdaptivePass", 0);
       if (half_rate) {
         const std::size_t blocks = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
@@ -1215,44 +1258,13 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
             .DispatchCovering(static_cast<unsigned>(bw), static_cast<unsigned>(bh),
                               static_cast<unsigned>(options_.shade_lanes));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
-        gl::Program& fp = im.flag_program;
-        glProgramUniform2i(fp.id(), fp.Uniform("uSize"), bw, bh);
-        fp.Set("uFactor", 2)
-            .Set("uContrast", static_cast<float>(options_.supersample_contrast))
-            .Set("uNormalCos", detail::kSupersampleNormalCos)
-            .Set("uNeighbourReps", 1);
-        im.g_position.BindImage(0, GL_READ_ONLY);
-        im.g_normal.BindImage(1, GL_READ_ONLY);
-        im.car_layer.BindImage(2, GL_READ_ONLY);
-        im.shadow_layer.BindImage(3, GL_READ_ONLY);
-        im.block_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
-        im.block_list.BindBase(GL_SHADER_STORAGE_BUFFER, 10);
-        const std::uint32_t zero = 0;
-        im.block_list.SubData(0, 4, &zero);
-        fp.Use().DispatchCovering(static_cast<unsigned>(bw), static_cast<unsigned>(bh));
-        glMemoryBarrier(GL_ALL_BARRIER_BITS);
-        std::uint32_t listed = 0;
-        im.block_list.Read(0, 4, &listed);
+        const std::uint32_t listed =
+            flag_and_shade_listed(im.block_flags, im.block_list, bw, bh, 2, im.car_layer, im.shadow_layer, true);
         // Every block once, three more pixels of each flagged whole block, and every pixel of
         // the blocks an odd edge cuts (all flagged).
         const long long whole = static_cast<long long>(w / 2) * (h / 2);
         half_rate_shaded = whole + 3LL * (listed - (static_cast<long long>(blocks) - whole)) +
                            (static_cast<long long>(pixels) - 4 * whole);
-        const long long list_samples = 3LL * listed;
-        constexpr int kListPitch = 256;
-        im.g_position.BindImage(0, GL_READ_ONLY);
-        im.g_normal.BindImage(1, GL_READ_ONLY);
-        im.g_base.BindImage(2, GL_READ_ONLY);
-        im.car_layer.BindImage(3, GL_WRITE_ONLY);
-        im.shadow_layer.BindImage(4, GL_WRITE_ONLY);
-        sp.Set("uAdaptivePass", 1)
-            .Set("uListPitch", kListPitch)
-            .Set("uListSamples", static_cast<int>(list_samples))
-            .Set("uSampleStride", 1)
-            .Set("uSamplePhase", 0);
-        if (list_samples > 0)
-          sp.Use().DispatchCovering(kListPitch, static_cast<unsigned>((list_samples + kListPitch - 1) / kListPitch),
-                                    static_cast<unsigned>(options_.shade_lanes));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
         gl::Program& fill = im.fill_program;
         glProgramUniform2i(fill.id(), fill.Uniform("uBlocks"), bw, bh);
@@ -1273,39 +1285,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
             .DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h),
                               static_cast<unsigned>(options_.shade_lanes));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
-        gl::Program& fp = im.flag_program;
-        glProgramUniform2i(fp.id(), fp.Uniform("uSize"), w, h);
-        fp.Set("uFactor", k)
-            .Set("uContrast", static_cast<float>(options_.supersample_contrast))
-            .Set("uNormalCos", detail::kSupersampleNormalCos);
-        im.g_position.BindImage(0, GL_READ_ONLY);
-        im.g_normal.BindImage(1, GL_READ_ONLY);
-        im.shaded_car.BindImage(2, GL_READ_ONLY);
-        im.shaded_shadow.BindImage(3, GL_READ_ONLY);
-        im.pixel_flags.BindBase(GL_SHADER_STORAGE_BUFFER, 9);
-        const std::uint32_t zero = 0;
-        im.flagged_list.SubData(0, 4, &zero);
-        fp.Use().DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h));
-        glMemoryBarrier(GL_ALL_BARRIER_BITS);
-        // The count sizes the second pass (a 4-byte read that waits for the flags; an indirect
-        // dispatch would spare a player that wait).
-        std::uint32_t listed = 0;
-        im.flagged_list.Read(0, 4, &listed);
-        const long long list_samples = static_cast<long long>(listed) * (k * k - 1);
-        constexpr int kListPitch = 256;
-        im.g_position.BindImage(0, GL_READ_ONLY);
-        im.g_normal.BindImage(1, GL_READ_ONLY);
-        im.g_base.BindImage(2, GL_READ_ONLY);
-        im.shaded_car.BindImage(3, GL_WRITE_ONLY);
-        im.shaded_shadow.BindImage(4, GL_WRITE_ONLY);
-        sp.Set("uAdaptivePass", 1)
-            .Set("uListPitch", kListPitch)
-            .Set("uListSamples", static_cast<int>(list_samples))
-            .Set("uSampleStride", 1)
-            .Set("uSamplePhase", 0);
-        if (list_samples > 0)
-          sp.Use().DispatchCovering(kListPitch, static_cast<unsigned>((list_samples + kListPitch - 1) / kListPitch),
-                                    static_cast<unsigned>(options_.shade_lanes));
+        flag_and_shade_listed(im.pixel_flags, im.flagged_list, w, h, k, im.shaded_car, im.shaded_shadow, false);
       } else {
         sp.Set("uSampleStride", 1)
             .Set("uSamplePhase", 0)
