@@ -51,14 +51,14 @@ uniform ivec2 uSize;
 // pixel (stride k, phase k/2: the sample nearest its centre), a second (uAdaptivePass) the
 // other k² − 1 samples of each pixel render_flag.comp listed, invocation i taking sample
 // i mod (k² − 1) of list entry i / (k² − 1) (i = y · uListPitch + x), so that every invocation
-// that runs shades. Otherwise stride 1, phase 0: every sample.
+// that runs shades; render_list_args.comp sizes its dispatch from the list's count on the GPU.
+// Otherwise stride 1, phase 0: every sample.
 uniform int uSampleStride;
 uniform int uSamplePhase;
 uniform int uAdaptivePass;
 uniform int uFactor;      // k
 uniform int uOutWidth;    // the output's width
 uniform int uListPitch;   // invocations per row of the second pass
-uniform int uListSamples; // its invocations: listed pixels × (k² − 1)
 layout(std430, binding = 10) readonly buffer FlaggedList {
   uint flaggedCount;
   uint flagged[];
@@ -574,7 +574,7 @@ void main() {
   bool shading = true;
   if (uAdaptivePass != 0) {
     int i = int(gl_GlobalInvocationID.y) * uListPitch + int(gl_GlobalInvocationID.x);
-    shading = i < uListSamples;
+    shading = i < int(flaggedCount) * (uFactor * uFactor - 1);
     int perPixel = uFactor * uFactor - 1;
     int sub = i % perPixel;
     if (sub >= (uFactor / 2) * uFactor + uFactor / 2) ++sub;  // the centre sample is shaded already

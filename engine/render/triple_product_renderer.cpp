@@ -557,6 +557,9 @@ struct TripleProductRenderer::Impl {
   // RenderOptions::shading_rate 2: per 2×2 block its flag, and the flagged ones listed (a count,
   // then the blocks' indices), as pixel_flags and flagged_list are for supersampling.
   gl::Buffer block_flags{gl::NoCreate}, block_list{gl::NoCreate};
+  // render_list_args.comp's output: the listed pass's work groups (x, y, z).
+  gl::Buffer list_args{gl::NoCreate};
+  gl::Program list_args_program{gl::NoCreate};
   gl::Program fill_program{gl::NoCreate};  // render_shade.comp's GroundLitMap (RenderOptions::ground_lit_map_texels)
   gl::Buffer count_totals{gl::NoCreate};   // RenderOptions::read_layers off: render_counts.comp's group sums
   gl::ReadbackBuffer readback;             // the layers and counts on their way to the CPU
@@ -651,6 +654,11 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   if (options_.shading_rate == 2) {
     im.flag_program = gl::ShaderLibrary::Compute("render_flag.comp");
     im.fill_program = gl::ShaderLibrary::Compute("render_fill.comp");
+  }
+  if (options_.supersample > 1 || options_.shading_rate == 2) {
+    im.list_args_program = gl::ShaderLibrary::Compute("render_list_args.comp");
+    im.list_args = gl::Buffer();
+    im.list_args.Allocate(3 * sizeof(std::uint32_t));
   }
   if (options_.monte_carlo_samples > 0) im.mc_program = gl::ShaderLibrary::Compute("render_mc.comp");
   im.white = gl::Texture::Create2D(GL_RGBA8, 1, 1);
@@ -1197,8 +1205,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
       }
       // render_flag.comp over flag_w × flag_h pixels (blocks, at shading_rate 2) of factor²
       // samples each, their flags into `flags` and the flagged ones into `list`; then
-      // render_shade.comp shades the listed ones' other samples into car and shadow. Returns how
-      // many were listed.
+      // render_shade.comp shades the listed ones' other samples into car and shadow.
       const auto flag_and_shade_listed = [&](gl::Buffer& flags, gl::Buffer& list, int flag_w, int flag_h, int factor,
                                              gl::Texture& car, gl::Texture& shadow, bool neighbour_reps) {
         gl::Program& fp = im.flag_program;
@@ -1217,26 +1224,23 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         list.SubData(0, 4, &zero);
         fp.Use().DispatchCovering(static_cast<unsigned>(flag_w), static_cast<unsigned>(flag_h));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
-        // The count sizes the second pass (a 4-byte read that waits for the flags; an indirect
-        // dispatch would spare a player that wait).
-        std::uint32_t listed = 0;
-        list.Read(0, 4, &listed);
-        const long long list_samples = static_cast<long long>(listed) * (factor * factor - 1);
+        // The second pass sized on the GPU from the list's count: no wait for the flags here.
         constexpr int kListPitch = 256;
+        gl::Program& ap = im.list_args_program;
+        ap.Set("uFactor", factor).Set("uListPitch", kListPitch);
+        im.list_args.BindBase(GL_SHADER_STORAGE_BUFFER, 13);
+        ap.Use();
+        glDispatchCompute(1, 1, 1);
+        glMemoryBarrier(GL_COMMAND_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
         im.g_position.BindImage(0, GL_READ_ONLY);
         im.g_normal.BindImage(1, GL_READ_ONLY);
         im.g_base.BindImage(2, GL_READ_ONLY);
         car.BindImage(3, GL_WRITE_ONLY);
         shadow.BindImage(4, GL_WRITE_ONLY);
-        sp.Set("uAdaptivePass", 1)
-            .Set("uListPitch", kListPitch)
-            .Set("uListSamples", static_cast<int>(list_samples))
-            .Set("uSampleStride", 1)
-            .Set("uSamplePhase", 0);
-        if (list_samples > 0)
-          sp.Use().DispatchCovering(kListPitch, static_cast<unsigned>((list_samples + kListPitch - 1) / kListPitch),
-                                    static_cast<unsigned>(options_.shade_lanes));
-        return listed;
+        sp.Set("uAdaptivePass", 1).Set("uListPitch", kListPitch).Set("uSampleStride", 1).Set("uSamplePhase", 0).Use();
+        glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, im.list_args.id());
+        glDispatchComputeIndirect(0);
+        glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, 0);
       };
       sp.Set("uGroundTablePass", 0).Set("uOutWidth", w).Set("uFactor", k).Set("uAdaptivePass", 0);
       if (half_rate) {
@@ -1258,13 +1262,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
             .DispatchCovering(static_cast<unsigned>(bw), static_cast<unsigned>(bh),
                               static_cast<unsigned>(options_.shade_lanes));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
-        const std::uint32_t listed =
-            flag_and_shade_listed(im.block_flags, im.block_list, bw, bh, 2, im.car_layer, im.shadow_layer, true);
-        // Every block once, three more pixels of each flagged whole block, and every pixel of
-        // the blocks an odd edge cuts (all flagged).
-        const long long whole = static_cast<long long>(w / 2) * (h / 2);
-        half_rate_shaded = whole + 3LL * (listed - (static_cast<long long>(blocks) - whole)) +
-                           (static_cast<long long>(pixels) - 4 * whole);
+        flag_and_shade_listed(im.block_flags, im.block_list, bw, bh, 2, im.car_layer, im.shadow_layer, true);
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
         gl::Program& fill = im.fill_program;
         glProgramUniform2i(fill.id(), fill.Uniform("uBlocks"), bw, bh);
@@ -1313,6 +1311,14 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     gl::Finish();
     out.ms.shade = MsSince(t0);
     stamp(3);
+    if (half_rate && !monte_carlo) {
+      // Every block once, three more pixels of each flagged whole block, and every pixel of the
+      // blocks an odd edge cuts (all flagged); the count read now that the GPU is done.
+      std::uint32_t listed = 0;
+      im.block_list.Read(0, 4, &listed);
+      const long long blocks = static_cast<long long>(bw) * bh, whole = static_cast<long long>(w / 2) * (h / 2);
+      half_rate_shaded = whole + 3LL * (listed - (blocks - whole)) + (static_cast<long long>(pixels) - 4 * whole);
+    }
 
     // Composite.
     t0 = Clock::now();
