@@ -1,4 +1,5 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // The keep rule of the residual transform: an SRBF whose largest |μ| channel is below uKeep
 // (keep threshold × mean radiance) is dropped (μ = 0). Counts the kept SRBFs and flags whether
 // a non-zero μ was dropped, so the residue is recomputed only then; in the level's slot of the
@@ -7,9 +8,7 @@ layout(local_size_x = 64) in;
 
 layout(std430, binding = 0) buffer Mu { vec4 mu[]; };
 layout(std430, binding = 1) buffer Flags { uint flags[]; };  // per level: kept, dropped
-// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
-// queued after the stop do nothing.
-layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
+#include "lighting_gate.glsl"
 
 uniform int uCount;
 uniform float uKeep;

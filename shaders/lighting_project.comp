@@ -1,4 +1,5 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // Pass 1 of a level of the residual transform (seed Algorithm 2, eq. 4.17): one work group per
 // SRBF c gathers μ_c = scale_c · Σ_{ω∈R(c)} w(ω) r(ω) over its precomputed pixel list, each
 // invocation striding through the list and a shared-memory tree adding the partial sums.
@@ -22,9 +23,7 @@ layout(std430, binding = 1) readonly buffer SrbfBegin { int srbf_begin[]; };
 layout(std430, binding = 2) readonly buffer SrbfEntries { Entry srbf_entries[]; };
 layout(std430, binding = 3) readonly buffer SrbfScale { float srbf_scale[]; };
 layout(std430, binding = 4) buffer Mu { vec4 mu[]; };
-// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
-// queued after the stop do nothing.
-layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
+#include "lighting_gate.glsl"
 
 uniform int uAccumulate;
 uniform float uStep;

@@ -1,4 +1,5 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // Pass 2 of a level of the residual transform (seed Algorithm 3, eq. 4.18), one invocation per
 // pixel over its precomputed SRBF list: out = base + uSign · Σ_c μ_c G_c(ω).
 // Used three ways: the residue a level leaves (base = residue, sign −1); the reconstruction of
@@ -21,9 +22,7 @@ layout(std430, binding = 4) readonly buffer Mu { vec4 mu[]; };
 layout(std430, binding = 5) readonly buffer Target { vec4 target[]; };
 layout(std430, binding = 6) writeonly buffer Residue { vec4 residue[]; };
 layout(std430, binding = 7) readonly buffer Flags { uint flags[]; };  // per level: kept, dropped
-// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
-// queued after the stop do nothing.
-layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
+#include "lighting_gate.glsl"
 
 uniform int uCount;
 uniform float uSign;

@@ -1,4 +1,5 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // Per-row sums of an image for the transform's decisions (constant term, mean radiance, mean
 // |residue|, RMS): one work group per row, a shared-memory reduction, then
 // lighting_stats_total.comp weights the rows by their solid angle in double precision.
@@ -11,9 +12,7 @@ layout(local_size_x = GROUP_SIZE) in;
 
 layout(std430, binding = 0) readonly buffer Image { vec4 pixels[]; };
 layout(std430, binding = 1) writeonly buffer Rows { vec4 rows[]; };
-// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
-// queued after the stop do nothing.
-layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
+#include "lighting_gate.glsl"
 
 uniform ivec2 uSize;
 

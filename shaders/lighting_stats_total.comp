@@ -1,4 +1,5 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // Sums the per-row results of lighting_stats.comp, each weighted by its row's solid angle, in
 // double precision (one work group), into slot uSlot of the totals the CPU reads back:
 // (Σ r dA, Σ g dA, Σ b dA, Σ (|r|+|g|+|b|) dA, Σ (r²+g²+b²) dA).
@@ -11,9 +12,7 @@ layout(local_size_x = GROUP_SIZE) in;
 layout(std430, binding = 0) readonly buffer Rows { vec4 rows[]; };
 layout(std430, binding = 1) readonly buffer RowSolidAngle { double row_solid_angle[]; };
 layout(std430, binding = 2) buffer Totals { double totals[]; };
-// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
-// queued after the stop do nothing.
-layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
+#include "lighting_gate.glsl"
 
 uniform int uRows;
 uniform int uSlot;

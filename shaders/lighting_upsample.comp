@@ -1,4 +1,5 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // Magnification of the reconstruction to the next level's grid, as the CPU path makes it
 // (sphere::MagnifyLagrange): by an integer factor, through the six nearest samples along each
 // axis, longitude wrapping around the seam and the rows beyond a pole taken half a turn away;
@@ -8,9 +9,7 @@ layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(std430, binding = 0) readonly buffer Source { vec4 source[]; };
 layout(std430, binding = 1) writeonly buffer Target { vec4 target[]; };
-// The level gate (lighting_gate.comp): closed once the transform has stopped, so that the levels
-// queued after the stop do nothing.
-layout(std430, binding = 9) readonly buffer Gate { uint gate_closed; };
+#include "lighting_gate.glsl"
 
 uniform ivec2 uSourceSize;
 uniform ivec2 uTargetSize;

@@ -574,8 +574,8 @@ void main() {
   bool shading = true;
   if (uAdaptivePass != 0) {
     int i = int(gl_GlobalInvocationID.y) * uListPitch + int(gl_GlobalInvocationID.x);
-    shading = i < int(flaggedCount) * (uFactor * uFactor - 1);
     int perPixel = uFactor * uFactor - 1;
+    shading = i < int(flaggedCount) * perPixel;
     int sub = i % perPixel;
     if (sub >= (uFactor / 2) * uFactor + uFactor / 2) ++sub;  // the centre sample is shaded already
     int entry = shading ? int(flagged[i / perPixel]) : 0;

@@ -553,14 +553,14 @@ struct TripleProductRenderer::Impl {
   // render_shade.comp's GroundTable: per cone of the ground's lobe, per traced peak, and the
   // unshadowed sum, the lighting the ground sees through it (one vec4 each).
   gl::Buffer ground_table{gl::NoCreate};
-  gl::Buffer ground_lit_map{gl::NoCreate};
+  gl::Buffer ground_lit_map{gl::NoCreate};  // render_shade.comp's GroundLitMap (RenderOptions::ground_lit_map_texels)
   // RenderOptions::shading_rate 2: per 2×2 block its flag, and the flagged ones listed (a count,
   // then the blocks' indices), as pixel_flags and flagged_list are for supersampling.
   gl::Buffer block_flags{gl::NoCreate}, block_list{gl::NoCreate};
   // render_list_args.comp's output: the listed pass's work groups (x, y, z).
   gl::Buffer list_args{gl::NoCreate};
   gl::Program list_args_program{gl::NoCreate};
-  gl::Program fill_program{gl::NoCreate};  // render_shade.comp's GroundLitMap (RenderOptions::ground_lit_map_texels)
+  gl::Program fill_program{gl::NoCreate};  // render_fill.comp (shading_rate 2)
   gl::Buffer count_totals{gl::NoCreate};   // RenderOptions::read_layers off: render_counts.comp's group sums
   gl::ReadbackBuffer readback;             // the layers and counts on their way to the CPU
   std::array<GLuint, 5> stage_queries{};   // GL timestamps between the GPU path's stages
@@ -1311,7 +1311,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     gl::Finish();
     out.ms.shade = MsSince(t0);
     stamp(3);
-    if (half_rate && !monte_carlo) {
+    if (half_rate) {
       // Every block once, three more pixels of each flagged whole block, and every pixel of the
       // blocks an odd edge cuts (all flagged); the count read now that the GPU is done.
       std::uint32_t listed = 0;

@@ -1154,8 +1154,11 @@ TEST_F(TripleProductRendererGL, HalfRateShadingFillsOnlySmoothBlocks) {
   EXPECT_EQ(gpu.counts.pixels_sampled_fully, pixels - static_cast<int>(filled));
   EXPECT_LT(gpu.counts.pixels_sampled_fully, pixels * 6 / 10);
   EXPECT_EQ(gpu.counts.car_pixels, every.counts.car_pixels);
-  EXPECT_LT(to_full.mean_rel, 0.01);
-  EXPECT_LT(to_cpu.mean_rel, 0.01);
+  // Measured 0.0006 / 0.014 and 0.0014; a fill that copies each block's shaded pixel (blocky)
+  // reads 0.0021 / 0.058 and 0.0032.
+  EXPECT_LT(to_full.mean_rel, 0.0012);
+  EXPECT_LT(to_full.p99_rel, 0.03);
+  EXPECT_LT(to_cpu.mean_rel, 0.0025);
   EXPECT_LT(flags_differ, static_cast<std::size_t>(pixels / 100));
 
   const PinholeCamera odd = View(kW + 1, kH + 1);
@@ -1168,7 +1171,7 @@ TEST_F(TripleProductRendererGL, HalfRateShadingFillsOnlySmoothBlocks) {
   std::printf("odd size %dx%d: %d pixels shaded, GPU vs CPU mean %.4f, edge pixels filled %d\n", kW + 1, kH + 1,
               odd_gpu.counts.pixels_sampled_fully, odd_diff.mean_rel, edge_filled);
   EXPECT_EQ(edge_filled, 0);
-  EXPECT_LT(odd_diff.mean_rel, 0.01);
+  EXPECT_LT(odd_diff.mean_rel, 0.0025);  // measured 0.0011 (the blocky fill: 0.0035)
   EXPECT_EQ(odd_gpu.counts.pixels_sampled_fully,
             static_cast<int>(std::count(odd_gpu.sampled_fully.begin(), odd_gpu.sampled_fully.end(), 1)));
 }
