@@ -47,6 +47,10 @@ inline CliRun RunOdvr(const std::string& args) {
   if (run.exit_code != 0 && run.err.find("LeakSanitizer has encountered a fatal error") != std::string::npos) {
     std::fprintf(stderr, "odvr %s: LeakSanitizer's tracer crashed at exit, running it again\n", args.c_str());
     run = RunOdvrOnce(args);
+    // A second failure stands; its stderr says whether it was the tracer again or odvr.
+    if (run.exit_code != 0)
+      std::fprintf(stderr, "odvr %s: failed again (exit %d), stderr ends:\n%s\n", args.c_str(), run.exit_code,
+                   run.err.substr(run.err.size() > 2000 ? run.err.size() - 2000 : 0).c_str());
   }
   return run;
 }
