@@ -119,15 +119,9 @@ void AugmentedOptions::Check() const {
   if (trajectory.empty()) throw UsageError("--trajectory", "is required in augmented mode");
   if (car.empty()) throw UsageError("--car", "is required in augmented mode");
   if (!(light_smoothing_s >= 0)) throw UsageError("light smoothing", "must be non-negative");
-  if (lighting_levels < 1 || lighting_levels > 6) throw UsageError("--levels", "must be 1..6");
-  if (voxel_resolution != 64 && voxel_resolution != 128 && voxel_resolution != 256)
-    throw UsageError("--voxels", "must be 64, 128 or 256");
-  if (supersample < 1 || supersample > render::kMaxSupersample)
-    throw UsageError("--supersample", "must be 1.." + std::to_string(render::kMaxSupersample));
-  if (shading_rate != 1 && shading_rate != 2) throw UsageError("--shading-rate", "must be 1 or 2");
+  CarRendering::Check();
   if (!(vfov_deg >= 10 && vfov_deg <= 150)) throw UsageError("--fov", "must be 10..150 degrees");
   if (!(exposure > 0)) throw UsageError("--exposure", "must be positive");
-  if (lighting_width < 16 || lighting_width % 2) throw UsageError("lighting width", "must be even and at least 16");
   if (frame_cache < 2) throw UsageError("frame cache", "must hold at least 2 frames");
   picker.Check();
 }
@@ -211,20 +205,8 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
   for (const auto& p : im.positions) im.rig_height += p.y / static_cast<double>(im.positions.size());
   picker_ = std::make_unique<FramePicker>(im.positions, options_.picker);
 
-  lighting::LightingOptions lo;
-  lo.transform.levels = options_.lighting_levels;
-  lo.peak_grid_width = options_.lighting_width;
-  im.builder = std::make_unique<lighting::LightingBuilder>(lo);
-
-  render::RenderOptions ro;
-  ro.lighting_levels = options_.lighting_levels;
-  ro.voxel_resolution = options_.voxel_resolution;
-  ro.cone_rings = options_.cone_rings;
-  ro.supersample = options_.supersample;
-  ro.shading_rate = options_.supersample > 1 ? 1 : options_.shading_rate;
-  ro.read_layers = false;  // the player shows the composite alone
-  ro.read_composite = !options_.composite_on_gpu;
-  im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
+  im.builder = std::make_unique<lighting::LightingBuilder>(options_.Lighting());
+  im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), options_.Render());
   im.car_centre = BoundsCentre(*im.renderer);
 
   car_ = std::make_unique<CarController>(GroundPlane{{0, 1, 0}, 0});

@@ -23,6 +23,7 @@
 
 #include "app/car_controller.h"
 #include "app/car_look.h"
+#include "app/car_rendering.h"
 #include "app/frame_picker.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/lighting/sg_lighting.h"
@@ -45,7 +46,8 @@ CarInput DriveInputAt(const std::vector<DriveStep>& script, double t_s);
 glm::dvec3 BoundsCentre(const render::TripleProductRenderer& renderer);
 double DriveDuration(const std::vector<DriveStep>& script);
 
-struct AugmentedOptions {
+// With composite_on_gpu, AugmentedFrame::image is left empty (the picture is in composite()).
+struct AugmentedOptions : CarRendering {
   std::string video;        // equirect video or image sequence, frame i ↔ trajectory index i
   std::string trajectory;   // trajectory.json (tracking::LoadTrajectoryJson's schema)
   std::string car;          // glTF 2.0 model
@@ -53,21 +55,10 @@ struct AugmentedOptions {
   double lateral_m = 0;     // the car's offset left of the camera path at the start
   FramePickerOptions picker;
   double light_smoothing_s = 0.25;  // LightWeightSmoother's time constant
-  int lighting_levels = 4;
-  // Light frames are area-resampled to this width before the lighting transform: level 3's
-  // SRBFs are ~7° apart, and the area mean keeps a peak's energy (the sun stays a peak).
-  int lighting_width = 256;
-  int voxel_resolution = 64;
-  int cone_rings = 1;
-  int supersample = 1;   // render::RenderOptions::supersample (adaptive, its default contrast)
-  int shading_rate = 1;  // render::RenderOptions::shading_rate (1 while supersample > 1)
   double vfov_deg = 70;
   double exposure = 1.0;
   std::size_t frame_cache = 48;  // decoded panoramas kept (8-bit)
-  // A window's frames stay on the GPU: AugmentedFrame::image is left empty and composite() holds
-  // the picture, exposure not applied (FramePresenter applies it as it draws).
-  bool composite_on_gpu = false;
-  void Check() const;  // throws odvr::UsageError
+  void Check() const;            // throws odvr::UsageError
 };
 
 struct AugmentedTimings {  // milliseconds of one shown frame

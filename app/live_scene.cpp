@@ -41,15 +41,9 @@ void LiveSceneOptions::Check() const {
   if (!(car_ahead_m > 0 && car_ahead_m < 1000)) throw UsageError("--car-start", "must be 0..1000 m ahead of the rig");
   if (stitch_width < 16 || stitch_height < 8 || stitch_width > 16384 || stitch_height > 8192)
     throw UsageError("--stitch-size", "must be between 16x8 and 16384x8192");
-  if (lighting_levels < 1 || lighting_levels > 6) throw UsageError("--levels", "must be 1..6");
-  if (voxel_resolution != 64 && voxel_resolution != 128 && voxel_resolution != 256)
-    throw UsageError("--voxels", "must be 64, 128 or 256");
-  if (supersample < 1 || supersample > render::kMaxSupersample)
-    throw UsageError("--supersample", "must be 1.." + std::to_string(render::kMaxSupersample));
-  if (shading_rate != 1 && shading_rate != 2) throw UsageError("--shading-rate", "must be 1 or 2");
+  CarRendering::Check();
   if (!(vfov_deg >= 10 && vfov_deg <= 150)) throw UsageError("--fov", "must be 10..150 degrees");
   if (!(exposure > 0)) throw UsageError("--exposure", "must be positive");
-  if (lighting_width < 16 || lighting_width % 2) throw UsageError("lighting width", "must be even and at least 16");
 }
 
 struct LiveScene::Impl {
@@ -81,24 +75,14 @@ LiveScene::LiveScene(LiveSceneOptions options) : options_(std::move(options)), i
   so.device = options_.stitch_device;
   im.stitcher = std::make_unique<capture::Stitcher>(im.rig, so);
 
-  lighting::LightingOptions lo;
-  lo.transform.levels = options_.lighting_levels;
-  lo.peak_grid_width = options_.lighting_width;
-  im.builder = std::make_unique<lighting::LightingBuilder>(lo);
+  im.builder = std::make_unique<lighting::LightingBuilder>(options_.Lighting());
 
   if (!options_.car.empty()) {
     if (!std::filesystem::exists(options_.car))
       throw Error(options_.car, "car model not found (a glTF 2.0 .glb or .gltf is needed for --car)");
     im.model = scene::LoadGltfScene(options_.car);
     if (im.model.triangle_count() == 0) throw Error(options_.car, "the car model has no triangles");
-    render::RenderOptions ro;
-    ro.lighting_levels = options_.lighting_levels;
-    ro.voxel_resolution = options_.voxel_resolution;
-    ro.supersample = options_.supersample;
-    ro.shading_rate = options_.supersample > 1 ? 1 : options_.shading_rate;
-    ro.read_layers = false;  // the player shows the composite alone
-    ro.read_composite = !options_.composite_on_gpu;
-    im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), ro);
+    im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), options_.Render());
     im.car_centre = BoundsCentre(*im.renderer);
   }
   car_ = std::make_unique<CarController>(GroundPlane{{0, 1, 0}, 0});

@@ -22,6 +22,7 @@
 
 #include "app/augmented_scene.h"
 #include "app/car_controller.h"
+#include "app/car_rendering.h"
 #include "capture/rig.h"
 #include "capture/source.h"
 #include "capture/stitcher.h"
@@ -29,23 +30,17 @@
 
 namespace odvr::app {
 
-struct LiveSceneOptions {
+// With composite_on_gpu and a car, LiveFrame::image is left empty (the picture is in
+// LiveScene::composite()).
+struct LiveSceneOptions : CarRendering {
   std::string rig;     // rig calibration (capture/rig.h)
   std::string source;  // capture::OpenSource spec; empty: the rig's image folders, replayed live
   std::string car;     // glTF 2.0 model; empty: the panorama alone
   double car_ahead_m = 6;
   int stitch_width = 1024, stitch_height = 512;
   capture::StitchDevice stitch_device = capture::StitchDevice::kCpu;
-  int lighting_levels = 4;
-  int lighting_width = 256;  // the panorama is area-resampled to this width for the lighting
-  int voxel_resolution = 64;
-  int supersample = 1;   // render::RenderOptions::supersample (adaptive, its default contrast)
-  int shading_rate = 1;  // render::RenderOptions::shading_rate (1 while supersample > 1)
   double vfov_deg = 90;
   double exposure = 1.0;
-  // A window's frames with the car stay on the GPU: LiveFrame::image is left empty and
-  // LiveScene::composite() holds the picture, exposure not applied (FramePresenter applies it).
-  bool composite_on_gpu = false;
   std::chrono::milliseconds first_set_timeout{5000};  // a source that delivers nothing is an error
   std::chrono::milliseconds set_timeout{200};         // later: show the last picture and go on
   void Check() const;                                 // throws odvr::UsageError
