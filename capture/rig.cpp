@@ -165,7 +165,7 @@ Rig ParseRig(const std::string& text, const std::filesystem::path& path) {
   json root;
   try {
     root = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number beyond double's range
     std::string what = e.what();
     std::replace(what.begin(), what.end(), '\n', ' ');
     p.Fail("not valid JSON (" + what + ")");

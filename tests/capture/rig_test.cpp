@@ -162,6 +162,8 @@ TEST(Rig, ReadsKalibrStylePinholeEquidistantAsFisheye) {
 TEST(Rig, MalformedFilesFailWithOneLineNamingTheFile) {
   const TempDir t;
   t.ExpectError("{ \"cameras\": [ {", "not valid JSON");
+  // A number beyond double's range: the JSON parser's out_of_range, found by mutating the demo rig.
+  t.ExpectError("{\"rig_height_m\": 1e3080}", "not valid JSON");
   t.ExpectError("[1, 2]", "not a JSON object");
   t.ExpectError("{\"rig_height_m\": 2}", "no cameras");
   t.ExpectError("{\"cameras\": 3}", "\"cameras\" is not an array");
