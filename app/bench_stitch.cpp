@@ -11,6 +11,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -56,11 +57,22 @@ struct BenchStitchOptions {
   std::string out_dir = "docs/benchmarks";
 };
 
+// Where an odvr stitch's time goes (capture::StitchReport), each the median of the repeats.
+constexpr std::array<const char*, 7> kStageNames = {"prepare", "gains",      "warp",    "fill",
+                                                    "upload",  "gpu_passes", "readback"};
+using Stages = std::array<double, kStageNames.size()>;
+
+Stages StagesOf(const capture::StitchReport& r) {
+  return {r.ms_prepare, r.ms_gains, r.ms_warp, r.ms_fill, r.ms_upload, r.ms_gpu_passes, r.ms_readback};
+}
+
 struct Row {
   int frame = 0;
   std::string method;
   double ms = 0;  // median of the repeats
   double psnr_valid = 0, psnr_seams = 0;
+  bool has_stages = false;  // the odvr paths
+  Stages stages{};
 };
 
 // Rows are kept at the precision the TSV prints them with, so the table and the target lines,
@@ -309,6 +321,17 @@ void WriteReport(const std::vector<Row>& rows, const BenchStitchOptions& o, cons
   for (const auto& r : rows)
     t << fmt::format("{}\t{}\t{:.3f}\t{:.4f}\t{:.4f}\n", r.frame, r.method, r.ms, r.psnr_valid, r.psnr_seams);
   WriteTextAtomically(tsv, t.str());
+  std::ostringstream st;
+  st << "frame\tmethod";
+  for (const char* name : kStageNames) st << "\t" << name << "_ms";
+  st << "\n";
+  for (const auto& r : rows) {
+    if (!r.has_stages) continue;
+    st << r.frame << "\t" << r.method;
+    for (double v : r.stages) st << fmt::format("\t{:.3f}", v);
+    st << "\n";
+  }
+  WriteTextAtomically(fs::path(o.out_dir) / "stitch_stages.tsv", st.str());
 
   std::map<std::string, std::vector<const Row*>> groups;
   std::vector<std::string> order;
@@ -364,8 +387,30 @@ void WriteReport(const std::vector<Row>& rows, const BenchStitchOptions& o, cons
        << fmt::format("{:.2f}", Median(ps)) << " | "
        << (opencv_ms > 0 && m > 0 ? fmt::format("{:.1f}×", opencv_ms / m) : std::string("–")) << " |\n";
   }
-  md << "\nMedians over the frames; every frame is in `stitch.tsv`.\n"
-     << Targets(rows, o, gpu_renderer)
+  md << "\nMedians over the frames; every frame is in `stitch.tsv`.\n\n"
+     << "Where an odvr frame's time goes (ms, medians over the frames of each stage's median over the runs, so "
+        "they need not add up to the row above; every frame is in `stitch_stages.tsv`). *prepare*: the frames "
+        "linearized on the CPU for the means and the gain estimate, which both devices use; *warp*: the blend, "
+        "on the GPU the whole submission, which is *upload* (the frames into the texture array, wall clock), "
+        "*GPU passes* (linearize, warp and pull-push fill on the GPU's own clock, GL timestamps) and *read-back* "
+        "(the result read and converted to the frame and its mask, wall clock, waiting for the passes first); "
+        "*fill*: the CPU's pull-push fill.\n\n"
+     << "| method | prepare | gains | warp | fill | upload | GPU passes | read-back |\n"
+     << "|---|---|---|---|---|---|---|---|\n";
+  for (const auto& method : order) {
+    std::vector<Stages> stages;
+    for (const Row* r : groups[method])
+      if (r->has_stages) stages.push_back(r->stages);
+    if (stages.empty()) continue;
+    md << "| " << method;
+    for (std::size_t k = 0; k < kStageNames.size(); ++k) {
+      std::vector<double> v;
+      for (const Stages& s : stages) v.push_back(s[k]);
+      md << fmt::format(" | {:.2f}", Median(v));
+    }
+    md << " |\n";
+  }
+  md << Targets(rows, o, gpu_renderer)
      << "\nThe plot `stitch.png` shows each frame's PSNR against its time per frame.\n\n"
         "![PSNR against time](stitch.png)\n";
   WriteTextAtomically(fs::path(o.out_dir) / "stitch.md", md.str());
@@ -434,35 +479,45 @@ int RunBenchStitch(const BenchStitchOptions& o) {
     // Each method: one warm-up, then `repeats` timed runs of `run`; `result` (untimed) gives
     // the last frame as 8-bit sRGB BGR to score. The odvr paths are timed to their linear float
     // frame: the sRGB encoding belongs to the scoring.
+    // `report`: the odvr paths' stage times after each run (null for OpenCV).
     const auto measure = [&](const std::string& method, const std::function<void()>& run,
-                             const std::function<cv::Mat()>& result) {
+                             const std::function<cv::Mat()>& result, const capture::StitchReport* report) {
       run();
       std::vector<double> times;
+      std::vector<Stages> stages;
       for (int k = 0; k < o.repeats; ++k) {
         const auto t0 = Clock::now();
         run();
         times.push_back(MsSince(t0));
+        if (report) stages.push_back(StagesOf(*report));
       }
       const cv::Mat out = result();
-      rows.push_back({frame, method, RoundTo(Median(times), 1e3), RoundTo(Psnr(out, truth, valid), 1e4),
-                      RoundTo(Psnr(out, truth, seams), 1e4)});
+      Row row{frame, method, RoundTo(Median(times), 1e3), RoundTo(Psnr(out, truth, valid), 1e4),
+              RoundTo(Psnr(out, truth, seams), 1e4)};
+      row.has_stages = report != nullptr;
+      for (std::size_t s = 0; s < kStageNames.size() && report; ++s) {
+        std::vector<double> v;
+        for (const Stages& st : stages) v.push_back(st[s]);
+        row.stages[s] = RoundTo(Median(v), 1e3);
+      }
+      rows.push_back(row);
     };
     // As a video loop would, each path stitches into the same frame buffers every time.
     capture::StitchedFrame last;
     const auto last_bgr = [&] { return ToBgr8(last.image); };
     measure(
-        "odvr cpu", [&] { cpu.Stitch(images, &last); }, last_bgr);
+        "odvr cpu", [&] { cpu.Stitch(images, &last); }, last_bgr, &last.report);
     if (gpu)
       measure(
-          "odvr gpu", [&] { gpu->Stitch(images, &last); }, last_bgr);
+          "odvr gpu", [&] { gpu->Stitch(images, &last); }, last_bgr, &last.report);
     cv::Mat opencv_out;
     measure(
-        "opencv", [&] { opencv_out = opencv.Stitch(images); }, [&] { return opencv_out; });
+        "opencv", [&] { opencv_out = opencv.Stitch(images); }, [&] { return opencv_out; }, nullptr);
     progress.Step("frame " + std::to_string(frame));
   }
   WriteReport(rows, o, machine, gpu_renderer, opencv.bands());
   std::cout << "bench stitch: " << rows.size() << " rows; wrote " << o.out_dir
-            << "/stitch.md, stitch.tsv, stitch.png\n";
+            << "/stitch.md, stitch.tsv, stitch_stages.tsv, stitch.png\n";
   return 0;
 }
 

@@ -758,7 +758,7 @@ void Stitcher::Stitch(const std::vector<cv::Mat>& images, StitchedFrame* frame) 
   r.ms_gains = MsSince(t);
   t = Clock::now();
   if (s.gpu) {
-    s.gpu->Run(images, r.camera_used, r.gains, s.options.fill_unseen, &out.image, &out.valid);
+    s.gpu->Run(images, r.camera_used, r.gains, s.options.fill_unseen, &out.image, &out.valid, &r);
     r.ms_warp = MsSince(t);  // the GPU does warp and fill in one submission
     for (auto v : out.valid) valid += v;
   } else {

@@ -122,6 +122,10 @@ struct StitchReport {
   std::vector<double> camera_mean;  // mean linear intensity of each input frame
   double valid_fraction = 0;        // of output pixels (by count) seen by a used camera
   double ms_prepare = 0, ms_gains = 0, ms_warp = 0, ms_fill = 0, ms_total = 0;
+  // The GPU path's ms_warp in parts (0 on the CPU): the frames' upload (wall clock), the compute
+  // passes (the GPU's own clock, GL timestamps) and the read-back with its conversion to the
+  // frame and mask (wall clock, which waits for the passes first).
+  double ms_upload = 0, ms_gpu_passes = 0, ms_readback = 0;
 
   // "stitched 2048x1024 in 41.2 ms (valid 93.1 %), gains [1.02, ...], unused cameras: 3".
   std::string Summary() const;

@@ -1,6 +1,7 @@
 #include "capture/stitcher_gpu.h"
 
 #include <array>
+#include <chrono>
 
 #include "engine/core/error.h"
 #include "engine/gl/objects.h"
@@ -8,6 +9,10 @@
 #include "engine/image/image_io.h"
 
 namespace odvr::capture {
+namespace {
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+}  // namespace
 
 struct GpuStitchPipeline::State {
   int width = 0, height = 0, cameras = 0;
@@ -22,6 +27,10 @@ struct GpuStitchPipeline::State {
   // Pull-push pyramid: level 0 is the warp output; filled[l] the pushed colour of level l.
   std::vector<std::array<int, 2>> sizes;
   std::vector<gl::Buffer> prem, filled;
+  std::array<GLuint, 2> stamps{};  // GL_TIMESTAMP before the first pass and after the last
+  ~State() {
+    if (stamps[0] != 0) glDeleteQueries(static_cast<GLsizei>(stamps.size()), stamps.data());
+  }
 };
 
 GpuStitchPipeline::GpuStitchPipeline(const Rig& rig, const StitchLut& lut) : state_(std::make_unique<State>()) {
@@ -61,6 +70,7 @@ GpuStitchPipeline::GpuStitchPipeline(const Rig& rig, const StitchLut& lut) : sta
   glTextureParameteri(id, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
   glTextureParameteri(id, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
 
+  glCreateQueries(GL_TIMESTAMP, static_cast<GLsizei>(s.stamps.size()), s.stamps.data());
   s.linearize = gl::ShaderLibrary::Compute("stitch_linearize.comp");
   s.warp = gl::ShaderLibrary::Compute("stitch_warp.comp");
   s.pull = gl::ShaderLibrary::Compute("stitch_pull.comp");
@@ -80,8 +90,9 @@ GpuStitchPipeline::~GpuStitchPipeline() = default;
 
 void GpuStitchPipeline::Run(const std::vector<cv::Mat>& images, const std::vector<bool>& used,
                             const std::vector<double>& gains, bool fill, sphere::EquirectImage* image,
-                            std::vector<std::uint8_t>* valid) {
+                            std::vector<std::uint8_t>* valid, StitchReport* report) {
   State& s = *state_;
+  const auto upload_start = Clock::now();
   GLint alignment = 4;
   glGetIntegerv(GL_UNPACK_ALIGNMENT, &alignment);
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
@@ -94,7 +105,9 @@ void GpuStitchPipeline::Run(const std::vector<cv::Mat>& images, const std::vecto
     glTextureSubImage3D(s.images.id(), 0, 0, 0, c, m.cols, m.rows, 1, GL_BGR, GL_UNSIGNED_BYTE, m.data);
   }
   glPixelStorei(GL_UNPACK_ALIGNMENT, alignment);
+  report->ms_upload = MsSince(upload_start);
 
+  glQueryCounter(s.stamps[0], GL_TIMESTAMP);
   const GLuint lin = s.linearize.id();
   s.linear.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
   s.srgb_table.BindBase(GL_SHADER_STORAGE_BUFFER, 1);
@@ -148,7 +161,9 @@ void GpuStitchPipeline::Run(const std::vector<cv::Mat>& images, const std::vecto
     }
     if (top > 0) result = &s.filled[0];
   }
+  glQueryCounter(s.stamps[1], GL_TIMESTAMP);
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  const auto readback_start = Clock::now();
   const std::vector<float> out = result->Read<float>();
   *image = sphere::EquirectImage(s.width, s.height);
   valid->assign(image->pixel_count(), 0);
@@ -156,6 +171,11 @@ void GpuStitchPipeline::Run(const std::vector<cv::Mat>& images, const std::vecto
     for (int k = 0; k < 3; ++k) image->rgb[3 * p + k] = out[4 * p + k];
     (*valid)[p] = out[4 * p + 3] > 0.5f ? 1 : 0;
   }
+  report->ms_readback = MsSince(readback_start);
+  // Both stamps are done: the read-back waited for the last pass.
+  GLuint64 stamps[2] = {0, 0};
+  for (int i = 0; i < 2; ++i) glGetQueryObjectui64v(s.stamps[static_cast<std::size_t>(i)], GL_QUERY_RESULT, &stamps[i]);
+  report->ms_gpu_passes = static_cast<double>(stamps[1] - stamps[0]) * 1e-6;
 }
 
 }  // namespace odvr::capture

@@ -23,9 +23,10 @@ class GpuStitchPipeline {
   GpuStitchPipeline& operator=(const GpuStitchPipeline&) = delete;
 
   // Warps, blends with `gains` (cameras with used[c] false are left out) and, with `fill`,
-  // pull-push fills the unseen directions; reads the result back.
+  // pull-push fills the unseen directions; reads the result back. Sets `report`'s ms_upload,
+  // ms_gpu_passes and ms_readback.
   void Run(const std::vector<cv::Mat>& images, const std::vector<bool>& used, const std::vector<double>& gains,
-           bool fill, sphere::EquirectImage* image, std::vector<std::uint8_t>* valid);
+           bool fill, sphere::EquirectImage* image, std::vector<std::uint8_t>* valid, StitchReport* report);
 
  private:
   struct State;

@@ -82,6 +82,31 @@ TEST(BenchStitch, ScoresBothPipelinesAndComputesTheTargetsFromTheRows) {
       << md;
   EXPECT_NE(md.find("**GPU:** not timed"), std::string::npos) << md;
   EXPECT_TRUE(fs::exists(t.dir / "stitch.gnuplot"));
+
+  // Where the odvr frame's time went: the CPU's stages, none of the GPU's, each within the frame.
+  std::vector<std::string> stages;
+  {
+    std::stringstream text(ReadText(t.dir / "stitch_stages.tsv"));
+    for (std::string l; std::getline(text, l);) stages.push_back(l);
+  }
+  ASSERT_EQ(stages.size(), 2u);
+  EXPECT_EQ(stages[0], "frame\tmethod\tprepare_ms\tgains_ms\twarp_ms\tfill_ms\tupload_ms\tgpu_passes_ms\treadback_ms");
+  std::vector<std::string> f;
+  std::stringstream line(stages[1]);
+  for (std::string field; std::getline(line, field, '\t');) f.push_back(field);
+  ASSERT_EQ(f.size(), 9u) << stages[1];
+  EXPECT_EQ(f[1], "odvr cpu");
+  double sum = 0;
+  for (int k = 2; k <= 5; ++k) {
+    EXPECT_GT(std::stod(f[static_cast<std::size_t>(k)]), 0) << stages[1];
+    sum += std::stod(f[static_cast<std::size_t>(k)]);
+  }
+  EXPECT_LE(sum, cpu.ms * 1.05 + 0.01) << "one run: the stages lie within the frame's time";
+  for (int k = 6; k <= 8; ++k) EXPECT_EQ(f[static_cast<std::size_t>(k)], "0.000") << stages[1];
+  EXPECT_NE(md.find(fmt::format("| odvr cpu | {:.2f} | {:.2f} | {:.2f} | {:.2f} | 0.00 | 0.00 | 0.00 |",
+                                std::stod(f[2]), std::stod(f[3]), std::stod(f[4]), std::stod(f[5]))),
+            std::string::npos)
+      << md;
 }
 
 TEST(BenchStitch, BadInputsEndInOneLine) {

@@ -542,6 +542,15 @@ TEST_F(StitcherGL, GpuPathMatchesTheCpuOnTheStreetRig) {
   ASSERT_EQ(a.valid, b.valid);
   EXPECT_LT(MaxDiff(a.image, b.image), 1e-5);
   std::printf("street_a 256x128: CPU %.1f ms, GPU (llvmpipe here) %.1f ms\n", a.report.ms_total, b.report.ms_total);
+  // The GPU warp's parts: the upload and the read-back inside its wall time, the passes' own
+  // clock within it too (they run between the two); none of them on the CPU path.
+  const StitchReport& g = b.report;
+  EXPECT_GT(g.ms_upload, 0);
+  EXPECT_GT(g.ms_gpu_passes, 0);
+  EXPECT_GT(g.ms_readback, 0);
+  EXPECT_LE(g.ms_upload + g.ms_readback, g.ms_warp);
+  EXPECT_LE(g.ms_gpu_passes, g.ms_warp);
+  EXPECT_EQ(a.report.ms_upload + a.report.ms_gpu_passes + a.report.ms_readback, 0);
 }
 
 }  // namespace
