@@ -20,7 +20,7 @@ struct CliRun {
   std::string err;  // stderr
 };
 
-inline CliRun RunOdvrOnce(const std::string& args) {
+inline CliRun RunOdvr(const std::string& args) {
   // Per process: ctest runs the app tests in parallel.
   const std::string err_file = ::testing::TempDir() + "odvr_err_" + std::to_string(::getpid()) + ".txt";
   const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
@@ -35,26 +35,6 @@ inline CliRun RunOdvrOnce(const std::string& args) {
     while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) run.err.append(buf.data(), n);
     std::fclose(f);
   }
-  return run;
-}
-
-inline CliRun RunOdvr(const std::string& args) {
-  CliRun run = RunOdvrOnce(args);
-  // Under the sanitizer build, LeakSanitizer's own tracer sometimes crashes at exit after the
-  // program has done its work ("Tracer caught signal 11 ... LeakSanitizer has encountered a fatal
-  // error"): first seen on app/run_render_test; on the live player's 24-frame run it crashed on two
-  // runs in a row (CI of 0d5a4c5 and 7f19431, the second run's stderr the tracer's again), and
-  // the same command passed 6 of 6 by hand. That is the leak checker failing, not odvr: up to three
-  // more runs, and a fourth failure stands. A leak report ("detected memory leaks") is not retried.
-  for (int retry = 0; retry < 3 && run.exit_code != 0 &&
-                      run.err.find("LeakSanitizer has encountered a fatal error") != std::string::npos;
-       ++retry) {
-    std::fprintf(stderr, "odvr %s: LeakSanitizer's tracer crashed at exit, running it again\n", args.c_str());
-    run = RunOdvrOnce(args);
-  }
-  if (run.exit_code != 0 && run.err.find("LeakSanitizer has encountered a fatal error") != std::string::npos)
-    std::fprintf(stderr, "odvr %s: the tracer crashed on every run (exit %d), stderr ends:\n%s\n", args.c_str(),
-                 run.exit_code, run.err.substr(run.err.size() > 2000 ? run.err.size() - 2000 : 0).c_str());
   return run;
 }
 
