@@ -495,11 +495,12 @@ int RunBenchStitch(const BenchStitchOptions& o) {
       Row row{frame, method, RoundTo(Median(times), 1e3), RoundTo(Psnr(out, truth, valid), 1e4),
               RoundTo(Psnr(out, truth, seams), 1e4)};
       row.has_stages = report != nullptr;
-      for (std::size_t s = 0; s < kStageNames.size() && report; ++s) {
-        std::vector<double> v;
-        for (const Stages& st : stages) v.push_back(st[s]);
-        row.stages[s] = RoundTo(Median(v), 1e3);
-      }
+      if (report)
+        for (std::size_t s = 0; s < kStageNames.size(); ++s) {
+          std::vector<double> v;
+          for (const Stages& st : stages) v.push_back(st[s]);
+          row.stages[s] = RoundTo(Median(v), 1e3);
+        }
       rows.push_back(row);
     };
     // As a video loop would, each path stitches into the same frame buffers every time.

@@ -11,7 +11,8 @@ void CarRendering::Check() const {
   if (lighting_width < 16 || lighting_width % 2) throw UsageError("lighting width", "must be even and at least 16");
   if (voxel_resolution != 64 && voxel_resolution != 128 && voxel_resolution != 256)
     throw UsageError("--voxels", "must be 64, 128 or 256");
-  if (cone_rings < 0 || cone_rings > 3) throw UsageError("--cones", "must be 1, 7, 19 or 37 cones (0..3 rings)");
+  // No player takes a cone count on its command line: named as the setting, not as an option.
+  if (cone_rings < 0 || cone_rings > 3) throw UsageError("cone rings", "must be 0..3 (1, 7, 19 or 37 cones)");
   if (supersample < 1 || supersample > render::kMaxSupersample)
     throw UsageError("--supersample", "must be 1.." + std::to_string(render::kMaxSupersample));
   if (shading_rate != 1 && shading_rate != 2) throw UsageError("--shading-rate", "must be 1 or 2");

@@ -60,7 +60,7 @@ TEST(CarRendering, BadSettingsNameTheirOption) {
   EXPECT_NE(with([](CarRendering& c) { c.lighting_levels = 7; }).find("--levels"), std::string::npos);
   EXPECT_NE(with([](CarRendering& c) { c.lighting_width = 15; }).find("lighting width"), std::string::npos);
   EXPECT_NE(with([](CarRendering& c) { c.voxel_resolution = 100; }).find("--voxels"), std::string::npos);
-  EXPECT_NE(with([](CarRendering& c) { c.cone_rings = 4; }).find("--cones"), std::string::npos);
+  EXPECT_NE(with([](CarRendering& c) { c.cone_rings = 4; }).find("cone rings"), std::string::npos);
   EXPECT_NE(with([](CarRendering& c) { c.supersample = 0; }).find("--supersample"), std::string::npos);
   EXPECT_NE(with([](CarRendering& c) { c.shading_rate = 3; }).find("--shading-rate"), std::string::npos);
 }
