@@ -31,12 +31,6 @@ void WritePlot(const std::filesystem::path& dir, const std::string& stem, int wi
     spdlog::warn("{}: gnuplot failed; the table and its data are written, the plot is not", bench);
 }
 
-bool IsSoftwareRenderer(const std::string& gl_renderer) {
-  for (const char* name : {"llvmpipe", "softpipe", "SwiftShader"})
-    if (gl_renderer.find(name) != std::string::npos) return true;
-  return false;
-}
-
 std::string ShellQuote(const std::string& s) {
   std::string q = "'";
   for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);

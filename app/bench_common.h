@@ -13,10 +13,6 @@ double Median(std::vector<double> values);
 // CPU model and core count, for the header of a benchmark table.
 std::string BenchMachineDescription();
 
-// Whether an OpenGL renderer string names a CPU rasterizer (Mesa's llvmpipe or softpipe,
-// SwiftShader): its times are the CPU's, not a GPU's, and a table must say so.
-bool IsSoftwareRenderer(const std::string& gl_renderer);
-
 // Writes `dir/<stem>.gnuplot` (a PNG terminal of width×height, output `<stem>.png`, then `body`)
 // and runs gnuplot in `dir`: the script names its data and its picture relative to itself, so a
 // copy in docs/benchmarks redraws there. A gnuplot that fails is a warning naming `bench`: the

@@ -78,7 +78,7 @@ int RunBenchPlayer(const BenchPlayerOptions& b) {
      << b.levels << " HEALPix levels from the frame area-resampled to 256×128; visibility: " << b.voxels
      << "³ voxels, 7 cones per broad lobe.\n\n"
      << "Machine: " << BenchMachineDescription() << "; OpenGL renderer: " << gl_renderer
-     << (IsSoftwareRenderer(gl_renderer)
+     << (gl::IsSoftwareRenderer(gl_renderer)
              ? ". **No GPU was available this session**: the figures are a CPU rasterizer's, not the target's (25 fps "
                "at 1280×720 on a GPU).\n\n"
              : ". Target: 25 fps at 1280×720 (40 ms per frame).\n\n")

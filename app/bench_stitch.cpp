@@ -304,7 +304,7 @@ std::string Targets(const std::vector<Row>& rows, const BenchStitchOptions& o, c
        << "read-back, with the gain estimate on the CPU. The seed stitches 6 × 1600×1200 at 25 fps: 40 ms per "
        << "frame; " << (ms <= 40 ? "within" : "outside") << " that budget here, at this output size and with "
        << "480×640 inputs.";
-    if (IsSoftwareRenderer(gpu_renderer))
+    if (gl::IsSoftwareRenderer(gpu_renderer))
       md << " No GPU machine was available for this run: llvmpipe is Mesa's software rasterizer on the same CPU "
             "cores, so the row shows that the GLSL path runs and matches the CPU path, not what a GPU reaches.";
     md << "\n";

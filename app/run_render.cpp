@@ -43,7 +43,7 @@ struct RenderCliOptions {
   std::string device = "gpu";
   bool json = false;
   bool composite_only = false;
-  int shade_lanes = 1;
+  int shade_lanes = render::RenderOptions{}.shade_lanes;
   int repeat = 1;
 };
 
@@ -221,7 +221,7 @@ int RunRender(const RenderCliOptions& o) {
           {"cones_per_broad_lobe", o.cones},
           {"voxels", o.voxels},
           {"supersample", o.supersample},
-          {"shade_lanes", o.shade_lanes},
+          {"shade_lanes", c.shade_lanes},
           {"depth_per_lobe", !o.bin_depth},
           {"overlap_cutoff", o.overlap_cutoff},
           {"ground_lit_map_texels", o.ground_lit_map},
@@ -309,8 +309,9 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");
   sub->add_option("--shade-lanes", o->shade_lanes,
-                  "GPU invocations per pixel, each shading every L-th lobe (1, 2 or 4; the same picture)")
-      ->check(CLI::IsMember({1, 2, 4}));
+                  "GPU invocations per pixel, each shading every L-th lobe (1, 2 or 4; the same picture; 0: 4 "
+                  "where the shading pass is small on a GPU, else 1)")
+      ->check(CLI::IsMember({0, 1, 2, 4}));
   sub->add_flag("--composite-only", o->composite_only,
                 "Read back the composite alone, the counts summed on the GPU (as the players do)");
   sub->add_option("--repeat", o->repeat,

@@ -78,7 +78,7 @@ if [ "$quick" = stages ]; then
   render 720p_v64_l4 --size 1280x720 --voxels 64 --levels 4
   render 720p_l1 --size 1280x720 --voxels 64 --levels 1
   render 320 --size 320x180
-  render 320_lanes4 --size 320x180 --shade-lanes 4
+  render 320_lanes1 --size 320x180 --shade-lanes 1
   step player_live 60 "$odvr" bench player --live --frames 30 --out "$results/player_live.md"
   # The GPU stitch's 12.3 ms a frame in parts: upload, passes (GL timestamps), read-back.
   step stitch 30 "$odvr" bench stitch --gpu --repeats 5 --out "$results/stitch"
@@ -96,6 +96,7 @@ elif [ "$quick" = shade ]; then
   render 720p --size 1280x720
   render 720p_composite --size 1280x720 --composite-only
   render 320 --size 320x180
+  render 320_lanes1 --size 320x180 --shade-lanes 1
   render 720p_bin_depth --size 1280x720 --composite-only --bin-depth
   render 720p_cutoff1e-2 --size 1280x720 --composite-only --overlap-cutoff 0.01
   render 720p_v64_l4 --size 1280x720 --composite-only --voxels 64 --levels 4

@@ -232,4 +232,15 @@ void RequireCurrentGl45(const std::string& who) {
                          std::to_string(minor));
 }
 
+bool IsSoftwareRenderer(const std::string& gl_renderer) {
+  for (const char* name : {"llvmpipe", "softpipe", "SwiftShader"})
+    if (gl_renderer.find(name) != std::string::npos) return true;
+  return false;
+}
+
+bool CurrentRendererIsSoftware() {
+  const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  return IsSoftwareRenderer(renderer ? renderer : "");
+}
+
 }  // namespace odvr::gl

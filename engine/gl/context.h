@@ -32,6 +32,12 @@ ContextInfo QueryContextInfo(const std::string& platform);
 // stages compile their shaders in their constructors.
 void RequireCurrentGl45(const std::string& who);
 
+// Whether an OpenGL renderer string names a CPU rasterizer (Mesa's llvmpipe or softpipe,
+// SwiftShader): its times are the CPU's, not a GPU's, and what pays on a GPU may not pay there.
+bool IsSoftwareRenderer(const std::string& gl_renderer);
+// The same for the current context's GL_RENDERER.
+bool CurrentRendererIsSoftware();
+
 // A 4.5 core context with no window. Prefers a hardware EGL device (NVIDIA's EGL device
 // platform) and falls back to Mesa's surfaceless platform (llvmpipe on machines without a GPU).
 // Set ODVR_EGL_PLATFORM=surfaceless|device to force one. Throws odvr::Error when neither works.

@@ -99,8 +99,7 @@ ResidualTransformGpu::ResidualTransformGpu(ResidualTransformOptions options)
   // group. Mesa's llvmpipe runs a group's invocations as SIMD loops on one CPU thread, where
   // each barrier() of the tree costs a switch per SIMD chunk: there, groups of 16 (projection)
   // and 32 (row sums) made level 4 of a 1024×512 frame about 2× faster than 128 and 256.
-  const char* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
-  const bool software = renderer && std::string(renderer).find("llvmpipe") != std::string::npos;
+  const bool software = gl::CurrentRendererIsSoftware();
   auto group = [](int n) { return "#define GROUP_SIZE " + std::to_string(n) + "\n"; };
   project_ = gl::ShaderLibrary::Compute("lighting_project.comp", group(software ? 16 : 64));
   stats_ = gl::ShaderLibrary::Compute("lighting_stats.comp", group(software ? 32 : 256));

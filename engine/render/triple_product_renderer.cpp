@@ -453,13 +453,17 @@ MaterialOverride ParseMaterialOverride(const std::string& text) {
   return out;
 }
 
+int ShadeLanesFor(long long first_pass_pixels, bool software_renderer) {
+  return !software_renderer && first_pass_pixels <= kAutoShadeLanesMaxPixels ? 4 : 1;
+}
+
 void RenderOptions::Check() const {
   if (lighting_levels < 1 || lighting_levels > 6) throw Error("render levels", "must be in 1..6");
   if (!read_composite && read_layers)
     throw Error("render read_composite", "can be off only with read_layers off (the layers include it)");
   if (cone_rings < 0 || cone_rings > 3) throw Error("render cones", "rings must be in 0..3 (1, 7, 19 or 37 cones)");
-  if (shade_lanes != 1 && shade_lanes != 2 && shade_lanes != 4)
-    throw Error("render shade_lanes", "must be 1, 2 or 4, got " + std::to_string(shade_lanes));
+  if (shade_lanes != 0 && shade_lanes != 1 && shade_lanes != 2 && shade_lanes != 4)
+    throw Error("render shade_lanes", "must be 0 (each render picks), 1, 2 or 4, got " + std::to_string(shade_lanes));
   if (voxel_resolution < 64 || voxel_resolution > 512 || (voxel_resolution & (voxel_resolution - 1)) != 0)
     throw Error("render voxels", "must be a power of two in 64..512, got " + std::to_string(voxel_resolution));
   if (!(ground_half_size > 0)) throw Error("render ground_half_size", "must be positive");
@@ -536,8 +540,20 @@ struct TripleProductRenderer::Impl {
   gl::Buffer bvh_nodes{gl::NoCreate}, bvh_triangles{gl::NoCreate};
   int bvh_triangle_count = 0;
 
-  gl::Program gbuffer_program{gl::NoCreate}, shade_program{gl::NoCreate}, composite_program{gl::NoCreate},
-      resolve_program{gl::NoCreate}, flag_program{gl::NoCreate}, counts_program{gl::NoCreate};
+  // render_shade.comp per lane count (1, 2, 4), compiled when a render first asks for it.
+  std::array<gl::Program, 3> shade_programs{gl::Program(gl::NoCreate), gl::Program(gl::NoCreate),
+                                            gl::Program(gl::NoCreate)};
+  int cone_rings = 0;
+  bool software_renderer = false;
+  gl::Program& ShadeProgram(int lanes) {
+    gl::Program& p = shade_programs[static_cast<std::size_t>(lanes == 4 ? 2 : lanes == 2 ? 1 : 0)];
+    if (!p)
+      p = gl::ShaderLibrary::Compute("render_shade.comp", "#define CONE_RINGS " + std::to_string(cone_rings) +
+                                                              "\n#define SHADE_LANES " + std::to_string(lanes) + "\n");
+    return p;
+  }
+  gl::Program gbuffer_program{gl::NoCreate}, composite_program{gl::NoCreate}, resolve_program{gl::NoCreate},
+      flag_program{gl::NoCreate}, counts_program{gl::NoCreate};
   int fb_width = 0, fb_height = 0, out_width = 0, out_height = 0;
   gl::Framebuffer framebuffer{gl::NoCreate};
   gl::Texture g_position{gl::NoCreate}, g_normal{gl::NoCreate}, g_base{gl::NoCreate}, g_depth{gl::NoCreate};
@@ -637,9 +653,9 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   gl::RequireCurrentGl45("triple-product renderer");
   Impl& im = *impl_;
   im.gbuffer_program = gl::ShaderLibrary::Graphics("render_gbuffer.vert", "render_gbuffer.frag");
-  im.shade_program = gl::ShaderLibrary::Compute(
-      "render_shade.comp", "#define CONE_RINGS " + std::to_string(options_.cone_rings) + "\n" + "#define SHADE_LANES " +
-                               std::to_string(options_.shade_lanes) + "\n");
+  im.cone_rings = options_.cone_rings;
+  im.software_renderer = gl::CurrentRendererIsSoftware();
+  if (options_.shade_lanes != 0) im.ShadeProgram(options_.shade_lanes);
   im.composite_program = gl::ShaderLibrary::Compute("render_composite.comp");
   {
     const int cones = 1 + 3 * options_.cone_rings * (options_.cone_rings + 1);  // render_shade.comp's kMaxCones
@@ -1065,7 +1081,13 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   // Shade.
   t0 = Clock::now();
   if (device == ShadeDevice::kGpu) {
-    gl::Program& sp = im.shade_program;
+    const long long first_pass = half_rate  ? static_cast<long long>(bw) * bh
+                                 : adaptive ? static_cast<long long>(w) * h
+                                            : static_cast<long long>(sw) * sh;
+    const int lanes =
+        options_.shade_lanes != 0 ? options_.shade_lanes : ShadeLanesFor(first_pass, im.software_renderer);
+    out.counts.shade_lanes = lanes;
+    gl::Program& sp = im.ShadeProgram(lanes);
     const glm::mat3 wfc(camera.world_from_camera), efw(im.lighting.env_from_world);
     glProgramUniform2i(sp.id(), sp.Uniform("uSize"), sw, sh);
     sp.Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
@@ -1200,7 +1222,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         sp.Set("uGroundTablePass", 2)
             .Use()
             .DispatchCovering(static_cast<unsigned>(map.width), static_cast<unsigned>(map.height),
-                              static_cast<unsigned>(options_.shade_lanes));
+                              static_cast<unsigned>(lanes));
         glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
       }
       // render_flag.comp over flag_w × flag_h pixels (blocks, at shading_rate 2) of factor²
@@ -1259,8 +1281,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
             .Set("uSampleStride", 2)
             .Set("uSamplePhase", 1)
             .Use()
-            .DispatchCovering(static_cast<unsigned>(bw), static_cast<unsigned>(bh),
-                              static_cast<unsigned>(options_.shade_lanes));
+            .DispatchCovering(static_cast<unsigned>(bw), static_cast<unsigned>(bh), static_cast<unsigned>(lanes));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
         flag_and_shade_listed(im.block_flags, im.block_list, bw, bh, 2, im.car_layer, im.shadow_layer, true);
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
@@ -1280,16 +1301,14 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         sp.Set("uSampleStride", k)
             .Set("uSamplePhase", k / 2)
             .Use()
-            .DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h),
-                              static_cast<unsigned>(options_.shade_lanes));
+            .DispatchCovering(static_cast<unsigned>(w), static_cast<unsigned>(h), static_cast<unsigned>(lanes));
         glMemoryBarrier(GL_ALL_BARRIER_BITS);
         flag_and_shade_listed(im.pixel_flags, im.flagged_list, w, h, k, im.shaded_car, im.shaded_shadow, false);
       } else {
         sp.Set("uSampleStride", 1)
             .Set("uSamplePhase", 0)
             .Use()
-            .DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh),
-                              static_cast<unsigned>(options_.shade_lanes));
+            .DispatchCovering(static_cast<unsigned>(sw), static_cast<unsigned>(sh), static_cast<unsigned>(lanes));
       }
     }
     glMemoryBarrier(GL_ALL_BARRIER_BITS);

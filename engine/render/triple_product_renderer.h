@@ -202,14 +202,23 @@ struct RenderOptions {
   // summed in shared memory (render_shade.comp). The same picture within float rounding; more
   // lanes shorten a pixel's serial chain and add the lanes' repeated set-up and registers. On the
   // H200 4 lanes shade 320×180 in 7.4 ms against 12.4, but 1280×720 in 35.7 against 27.0 (the GPU
-  // is full there); on llvmpipe they only cost.
-  int shade_lanes = 1;
+  // is full there); on llvmpipe they only cost. 0 (the default): each render picks
+  // (ShadeLanesFor), from the size of its first shading pass and the device.
+  int shade_lanes = 0;
   void Check() const;  // throws odvr::Error naming the field
 };
 
 enum class ShadeDevice { kGpu, kCpu };
 
 // Per shaded sample: with RenderOptions::supersample k, k² of them per output pixel.
+// RenderOptions::shade_lanes 0: 4 lanes where a render's first shading pass covers at most
+// kAutoShadeLanesMaxPixels pixels (blocks at shading rate 2) on a GPU, where one invocation per
+// pixel leaves most of it idle and a pixel's serial chain sets the time; 1 on larger passes (the
+// GPU full) and on a CPU rasterizer, whose threads are full at any size. The bound lies between
+// the sizes the H200 measured either way: 320×180 (57 600) and 1280×720 (921 600).
+inline constexpr long long kAutoShadeLanesMaxPixels = 1 << 16;
+int ShadeLanesFor(long long first_pass_pixels, bool software_renderer);
+
 struct RenderCounts {
   int lighting_sgs = 0;  // SGs of the model used (constant, kept SRBFs, peaks)
   int peaks = 0;         // peak SGs (each one extra cone when peak_cones)
@@ -221,6 +230,7 @@ struct RenderCounts {
   double triples_per_car_pixel = 0;  // lobe × cone × SG integrals evaluated (0 where unoccluded)
   int pixels_sampled_fully = 0;      // supersample > 1: pixels whose every sample was shaded;
                                      // shading_rate 2: pixels shaded (the rest were filled)
+  int shade_lanes = 0;               // GPU shading: invocations per pixel it ran with (0 on the CPU)
   long long cones_total = 0;         // over every pixel, ground included
   long long triples_total = 0;       // a ground pixel counts its cones' weighted sum (the ground table)
 };

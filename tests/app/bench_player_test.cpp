@@ -6,7 +6,6 @@
 #include <fstream>
 #include <string>
 
-#include "app/bench_common.h"
 #include "tests/app/run_odvr.h"
 
 namespace {
@@ -14,15 +13,6 @@ namespace {
 using odvr::testing::ReadText;
 using odvr::testing::RunOdvr;
 using odvr::testing::ScratchDir;
-
-// A table made on a CPU rasterizer says its times are not a GPU's; one made on a GPU must not.
-TEST(BenchPlayer, SoftwareRenderersAreToldFromGpus) {
-  EXPECT_TRUE(odvr::app::IsSoftwareRenderer("llvmpipe (LLVM 15.0.6, 256 bits)"));
-  EXPECT_TRUE(odvr::app::IsSoftwareRenderer("softpipe"));
-  EXPECT_TRUE(odvr::app::IsSoftwareRenderer("ANGLE (Google, Vulkan 1.3.0 (SwiftShader Device (Subzero)))"));
-  EXPECT_FALSE(odvr::app::IsSoftwareRenderer("NVIDIA H200/PCIe/SSE2"));
-  EXPECT_FALSE(odvr::app::IsSoftwareRenderer("AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 15.0.6)"));
-}
 
 TEST(BenchPlayerGL, LiveSectionReplacesOnlyItself) {
   ScratchDir d("bench_player_live");

@@ -7,6 +7,20 @@ namespace {
 
 using ContextGL = odvr::testing::GlTest;
 
+// A CPU rasterizer's times are not a GPU's (bench tables say so), and what pays on a GPU may not
+// pay there (RenderOptions::shade_lanes).
+TEST(Context, SoftwareRenderersAreToldFromGpus) {
+  EXPECT_TRUE(IsSoftwareRenderer("llvmpipe (LLVM 15.0.6, 256 bits)"));
+  EXPECT_TRUE(IsSoftwareRenderer("softpipe"));
+  EXPECT_TRUE(IsSoftwareRenderer("ANGLE (Google, Vulkan 1.3.0 (SwiftShader Device (Subzero)))"));
+  EXPECT_FALSE(IsSoftwareRenderer("NVIDIA H200/PCIe/SSE2"));
+  EXPECT_FALSE(IsSoftwareRenderer("AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 15.0.6)"));
+}
+
+TEST_F(ContextGL, CurrentRendererIsToldAsItsStringIs) {
+  EXPECT_EQ(CurrentRendererIsSoftware(), IsSoftwareRenderer(testing::SharedGlContext().Info().renderer));
+}
+
 TEST_F(ContextGL, HeadlessContextIsOpenGL45CoreWithCompute) {
   const ContextInfo info = testing::SharedGlContext().Info();
   EXPECT_TRUE(info.platform == "egl-surfaceless" || info.platform == "egl-device") << info.platform;
