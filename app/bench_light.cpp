@@ -19,6 +19,7 @@
 
 #include "app/bench_common.h"
 #include "app/commands.h"
+#include "app/transform_tuning.h"
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
@@ -56,16 +57,7 @@ struct BenchLightOptions {
   int sh_width = 256;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
-  int sweeps = lighting::ResidualTransformOptions{}.sweeps;
-  int fine_sweeps = lighting::ResidualTransformOptions{}.fine_sweeps;
-  double fine_relaxation = lighting::ResidualTransformOptions{}.fine_relaxation;
-  int base_width = lighting::ResidualTransformOptions{}.base_width;
-  std::string normalization = "partition";
-  double region_cutoff = lighting::ResidualTransformOptions{}.region_cutoff;
-  double broad_region_cutoff = lighting::ResidualTransformOptions{}.broad_region_cutoff;
-  double keep_threshold = lighting::ResidualTransformOptions{}.keep_threshold;
-  bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
-  bool no_coarse_correction = !lighting::ResidualTransformOptions{}.coarse_correction;
+  lighting::ResidualTransformOptions transform;  // the tuning flags (AddTransformTuning)
 };
 
 constexpr int kMaxRuns = 500;
@@ -498,20 +490,9 @@ int RunBenchLight(BenchLightOptions o) {
           for (int levels = 1; levels <= o.max_levels; ++levels) {
             if ((o.only_levels && levels != o.only_levels) || (peaks && o.skip_peaks)) continue;
             lighting::LightingOptions lo;
+            lo.transform = o.transform;
             lo.transform.levels = levels;
             lo.transform.stop_threshold = 0;  // the bench measures each level count as asked
-            lo.transform.sweeps = o.sweeps;
-            lo.transform.fine_sweeps = o.fine_sweeps;
-            lo.transform.fine_relaxation = o.fine_relaxation;
-            lo.transform.base_width = o.base_width;
-            lo.transform.region_cutoff = o.region_cutoff;
-            lo.transform.broad_region_cutoff = o.broad_region_cutoff;
-            lo.transform.keep_threshold = o.keep_threshold;
-            lo.transform.exact_reconstruction = o.exact_reconstruction;
-            lo.transform.coarse_correction = !o.no_coarse_correction;
-            lo.transform.normalization = o.normalization == "none"        ? lighting::Normalization::kNone
-                                         : o.normalization == "local-sum" ? lighting::Normalization::kLocalSum
-                                                                          : lighting::Normalization::kPartition;
             lo.detect_peaks = peaks;
             lighting::LightingBuilder builder(lo);
             if (device == "gpu") gpu = std::make_unique<lighting::ResidualTransformGpu>(lo.transform);
@@ -569,28 +550,7 @@ CommandFn AddBenchLight(CLI::App* sub) {
   sub->add_option("--sh-width", o->sh_width, "Width of the grid SH projects the frame on (resampled, timed)")
       ->check(CLI::Range(16, 8192));
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
-  sub->add_option("--sweeps", o->sweeps, "Projection passes per level of λ < 300 (levels 0-2)")
-      ->check(CLI::Range(1, 16));
-  sub->add_option("--fine-sweeps", o->fine_sweeps, "Projection passes per level of λ >= 300 (levels 3-5)")
-      ->check(CLI::Range(1, 16));
-  sub->add_option("--fine-relaxation", o->fine_relaxation,
-                  "Step of the refitting passes at levels 3-5 (1: plain; above 1 over-relaxes them)")
-      ->check(CLI::Range(0.05, 1.95));
-  sub->add_option("--region-cutoff", o->region_cutoff, "An SRBF's cap: where its Gaussian exceeds this (levels 3-5)")
-      ->check(CLI::Range(1e-9, 0.4));
-  sub->add_option("--broad-region-cutoff", o->broad_region_cutoff, "The cap's cut-off of the levels 0-2")
-      ->check(CLI::Range(1e-9, 0.4));
-  sub->add_option("--keep-threshold", o->keep_threshold,
-                  "Drop SRBFs whose largest |amplitude| is under this times the mean radiance")
-      ->check(CLI::Range(0.0, 1.0));
-  sub->add_flag("--no-coarse-correction", o->no_coarse_correction,
-                "Do not let the two levels below the finest refit what every level left");
-  sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
-                "Evaluate every coarser level on each level's grid, or magnify the coarser grid's reconstruction "
-                "(default)");
-  sub->add_option("--normalization", o->normalization, "Amplitude normalization of the transform")
-      ->check(CLI::IsMember({"none", "local-sum", "partition"}));
-  sub->add_option("--base-width", o->base_width, "Working-grid width of level 0")->check(CLI::Range(8, 4096));
+  AddTransformTuning(sub, &o->transform);
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchLight(*o); };
 }

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/commands.h"
+#include "app/transform_tuning.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
@@ -22,13 +23,8 @@ struct LightOptions {
   std::string input;
   int levels = 5;
   double threshold = 0.01;
-  int sweeps = lighting::ResidualTransformOptions{}.sweeps;
-  int fine_sweeps = lighting::ResidualTransformOptions{}.fine_sweeps;
-  double fine_relaxation = lighting::ResidualTransformOptions{}.fine_relaxation;
-  int base_width = lighting::ResidualTransformOptions{}.base_width;
+  lighting::ResidualTransformOptions transform;  // the tuning flags (AddTransformTuning)
   bool no_peaks = false;
-  bool exact_reconstruction = lighting::ResidualTransformOptions{}.exact_reconstruction;
-  bool no_coarse_correction = !lighting::ResidualTransformOptions{}.coarse_correction;
   std::string device = "cpu";
   std::string out;
   std::string preview;
@@ -45,14 +41,9 @@ nlohmann::json ErrorsJson(const lighting::LightingErrors& e) {
 int RunLight(const LightOptions& o) {
   const sphere::EquirectImage frame = image::LoadImage(o.input, {.max_width = 8192, .require_equirect = true});
   lighting::LightingOptions options;
+  options.transform = o.transform;
   options.transform.levels = o.levels;
   options.transform.stop_threshold = o.threshold;
-  options.transform.sweeps = o.sweeps;
-  options.transform.fine_sweeps = o.fine_sweeps;
-  options.transform.fine_relaxation = o.fine_relaxation;
-  options.transform.base_width = o.base_width;
-  options.transform.exact_reconstruction = o.exact_reconstruction;
-  options.transform.coarse_correction = !o.no_coarse_correction;
   options.detect_peaks = !o.no_peaks;
 
   // The GPU path needs a context for as long as the transform lives.
@@ -131,21 +122,7 @@ CommandFn AddLight(CLI::App* sub) {
   sub->add_option("--levels", o->levels, "HEALPix levels to fit at most (1..6)")->check(CLI::Range(1, 6));
   sub->add_option("--threshold", o->threshold, "Stop when the mean |residue| falls below this × mean radiance")
       ->check(CLI::Range(0.0, 1.0));
-  sub->add_option("--sweeps", o->sweeps,
-                  "Projection passes per level of λ < 300, levels 0-2 (1: the seed's; more: closer to least squares)")
-      ->check(CLI::Range(1, 16));
-  sub->add_option("--fine-sweeps", o->fine_sweeps, "Projection passes per level of λ >= 300, levels 3-5")
-      ->check(CLI::Range(1, 16));
-  sub->add_option("--fine-relaxation", o->fine_relaxation,
-                  "Step of the refitting passes at levels 3-5 (1: plain; above 1 over-relaxes them)")
-      ->check(CLI::Range(0.05, 1.95));
-  sub->add_option("--base-width", o->base_width, "Working-grid width of level 0, doubling per level")
-      ->check(CLI::Range(8, 4096));
-  sub->add_flag("--no-coarse-correction", o->no_coarse_correction,
-                "Do not let the two levels below the finest refit what every level left");
-  sub->add_flag("--exact-reconstruction,!--magnify", o->exact_reconstruction,
-                "Evaluate every coarser level on each level's grid, or magnify the coarser grid's reconstruction "
-                "through six samples per axis (default: as accurate, faster)");
+  AddTransformTuning(sub, &o->transform);
   sub->add_flag("--no-peaks", o->no_peaks, "Do not take suns and lamps out as free-form SGs first");
   sub->add_option("--device", o->device, "Where the residual transform runs")->check(CLI::IsMember({"cpu", "gpu"}));
   sub->add_option("--out", o->out, "Write the lighting model (lighting.json)");

@@ -100,6 +100,31 @@ TEST(RunLight, LevelsOutOfRangeIsAUsageError) {
   EXPECT_NE(r.err.find("--levels"), std::string::npos) << r.err;
 }
 
+// The tuning flags (shared with bench light) reach the transform: without the coarse correction
+// (5 levels on) none is run, the seed's single pass and plain normalization give another model; a value out of
+// range or unknown is a usage error naming its flag.
+TEST(RunLight, TuningFlagsReachTheTransform) {
+  if (!std::filesystem::exists(kSky)) GTEST_SKIP() << kSky << " is absent (the shared test data)";
+  const auto light = [](const std::string& flags) {
+    const CliRun r = RunOdvr("light " + kSky + " --json --levels 5 --threshold 0 --no-peaks " + flags);
+    EXPECT_EQ(r.exit_code, 0) << flags << ": " << r.err;
+    return r.exit_code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json{};
+  };
+  const nlohmann::json plain = light(""), uncorrected = light("--no-coarse-correction"),
+                       seed = light("--sweeps 1 --fine-sweeps 1 --normalization none");
+  ASSERT_FALSE(plain.is_null() || uncorrected.is_null() || seed.is_null());
+  EXPECT_GT(plain.at("correction_ms").get<double>(), 0);
+  EXPECT_EQ(uncorrected.at("correction_ms").get<double>(), 0);
+  EXPECT_NE(uncorrected.at("diffuse_error").get<double>(), plain.at("diffuse_error").get<double>());
+  EXPECT_NE(seed.at("glossy20_error").get<double>(), uncorrected.at("glossy20_error").get<double>());
+  for (const std::string flags : {"--normalization sideways", "--fine-sweeps 0", "--region-cutoff 0.9"}) {
+    const CliRun r = RunOdvr("light " + kSky + " " + flags);
+    EXPECT_EQ(r.exit_code, 2) << flags << ": " << r.err;
+    EXPECT_EQ(Lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find(flags.substr(0, flags.find(' '))), std::string::npos) << r.err;
+  }
+}
+
 TEST(RunLight, GpuKeepsTheSameSrbfsAsCpu) {
   if (!std::filesystem::exists(kSky)) GTEST_SKIP() << kSky << " is absent (the shared test data)";
   try {
