@@ -333,6 +333,7 @@ Row RenderRow(const render::RenderOptions& base, const Reference& ref, const std
     warm.width = small_side_like(camera.width);
     warm.height = small_side_like(camera.height);
     renderer.Render(warm);
+    renderer.PrepareShading(camera);  // GPU: the timed size may shade with other lanes than the small one
   }
   render::RenderResult r = renderer.Render(camera);
   Row row;

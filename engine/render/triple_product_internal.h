@@ -15,6 +15,11 @@
 
 namespace odvr::render::detail {
 
+// The invocations (per lane) of the first shading pass of a width×height render, as Render
+// dispatches it: the 2×2 blocks at shading rate 2, the pixels' centre samples when supersampling
+// adaptively, every sample otherwise. What RenderOptions::shade_lanes 0 picks its lanes by.
+long long FirstShadingPassPixels(const RenderOptions& options, int width, int height);
+
 // The render's counts summed over its shaded samples (RenderCounts before the means).
 struct CountSums {
   long long car = 0, ground = 0, pixels_sampled_fully = 0;

@@ -453,6 +453,13 @@ MaterialOverride ParseMaterialOverride(const std::string& text) {
   return out;
 }
 
+long long detail::FirstShadingPassPixels(const RenderOptions& options, int width, int height) {
+  const long long w = width, h = height, k = options.supersample;
+  if (options.shading_rate == 2) return ((w + 1) / 2) * ((h + 1) / 2);
+  if (k > 1 && options.supersample_contrast > 0 && options.monte_carlo_samples == 0) return w * h;
+  return k * w * k * h;
+}
+
 int ShadeLanesFor(long long first_pass_pixels, bool software_renderer) {
   return !software_renderer && first_pass_pixels <= kAutoShadeLanesMaxPixels ? 4 : 1;
 }
@@ -802,6 +809,15 @@ int TripleProductRenderer::peaks_without_cone() const {
   return std::max(0, static_cast<int>(impl_->lighting.peaks.size()) - kMaxPeakCones);
 }
 
+int TripleProductRenderer::PrepareShading(const PinholeCamera& camera) {
+  const int lanes = options_.shade_lanes != 0
+                        ? options_.shade_lanes
+                        : ShadeLanesFor(detail::FirstShadingPassPixels(options_, camera.width, camera.height),
+                                        impl_->software_renderer);
+  impl_->ShadeProgram(lanes);
+  return lanes;
+}
+
 void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides) {
   Impl& im = *impl_;
   // Material terms: the glTF metallic-roughness unless an override names the material. Each
@@ -1081,11 +1097,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   // Shade.
   t0 = Clock::now();
   if (device == ShadeDevice::kGpu) {
-    const long long first_pass = half_rate  ? static_cast<long long>(bw) * bh
-                                 : adaptive ? static_cast<long long>(w) * h
-                                            : static_cast<long long>(sw) * sh;
-    const int lanes =
-        options_.shade_lanes != 0 ? options_.shade_lanes : ShadeLanesFor(first_pass, im.software_renderer);
+    const int lanes = PrepareShading(camera);
     out.counts.shade_lanes = lanes;
     gl::Program& sp = im.ShadeProgram(lanes);
     const glm::mat3 wfc(camera.world_from_camera), efw(im.lighting.env_from_world);

@@ -287,6 +287,9 @@ class TripleProductRenderer {
 
   // draw_model false: the background alone, through the same composite (a player hiding the car).
   RenderResult Render(const PinholeCamera& camera, ShadeDevice device = ShadeDevice::kGpu, bool draw_model = true);
+  // The shading lanes a GPU render of `camera`'s size runs with (RenderOptions::shade_lanes), and
+  // their program compiled now, so that a timed render does not compile it.
+  int PrepareShading(const PinholeCamera& camera);
 
   // Between frames (the player's panel): the material overrides, as options.materials, and
   // whether peaks get their own cones. Throws odvr::Error for an override it cannot shade.

@@ -441,6 +441,17 @@ TEST(ShadeLanes, FourOnlyOnSmallPassesOnAGpu) {
   EXPECT_EQ(ShadeLanesFor(320 * 180, true), 1);
   EXPECT_EQ(ShadeLanesFor(1, true), 1);
   EXPECT_EQ(RenderOptions{}.shade_lanes, 0);
+  // The first pass the pick looks at: the pixels, the 2×2 blocks at rate 2 (an odd edge's block
+  // whole), the centre samples of adaptive supersampling, every sample when it shades them all.
+  RenderOptions o;
+  EXPECT_EQ(detail::FirstShadingPassPixels(o, 320, 180), 320 * 180);
+  o.shading_rate = 2;
+  EXPECT_EQ(detail::FirstShadingPassPixels(o, 321, 181), 161 * 91);
+  o.shading_rate = 1;
+  o.supersample = 2;
+  EXPECT_EQ(detail::FirstShadingPassPixels(o, 320, 180), 320 * 180);
+  o.supersample_contrast = 0;
+  EXPECT_EQ(detail::FirstShadingPassPixels(o, 320, 180), 640 * 360);
 }
 
 // Each render says the lanes it shaded with: the rule's pick for its first pass on this device
@@ -459,6 +470,7 @@ TEST_F(TripleProductRendererGL, ShadeLanesArePickedPerRender) {
       view.width = width;
       const long long first_pass = rate == 2 ? static_cast<long long>((view.width + 1) / 2) * ((view.height + 1) / 2)
                                              : static_cast<long long>(view.width) * view.height;
+      EXPECT_EQ(r.PrepareShading(view), ShadeLanesFor(first_pass, software)) << rate << " " << width;
       EXPECT_EQ(r.Render(view, ShadeDevice::kGpu).counts.shade_lanes, ShadeLanesFor(first_pass, software))
           << rate << " " << width;
     }
@@ -469,6 +481,7 @@ TEST_F(TripleProductRendererGL, ShadeLanesArePickedPerRender) {
   told.shade_lanes = 2;
   TripleProductRenderer r(SphereAndBox(), glm::dmat4(1.0), told);
   r.SetLighting(SunnySky());
+  EXPECT_EQ(r.PrepareShading(View()), 2);
   EXPECT_EQ(r.Render(View(), ShadeDevice::kGpu).counts.shade_lanes, 2);
 }
 
