@@ -59,6 +59,7 @@ struct BenchRenderOptions {
   double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
   int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
   int shading_rate = render::RenderOptions{}.shading_rate;
+  bool exact_peak_shadows = render::RenderOptions{}.exact_peak_shadows;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
 };
@@ -701,6 +702,7 @@ int RunBenchRender(BenchRenderOptions o) {
   base.overlap_cutoff = o.overlap_cutoff;
   base.ground_lit_map_texels = o.ground_lit_map;
   base.shading_rate = o.shading_rate;
+  base.exact_peak_shadows = o.exact_peak_shadows;
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   if (!o.depth_per_lobe) machine += "; --bin-depth";
@@ -708,6 +710,8 @@ int RunBenchRender(BenchRenderOptions o) {
     machine += "; --overlap-cutoff " + std::to_string(o.overlap_cutoff);
   if (o.ground_lit_map != render::RenderOptions{}.ground_lit_map_texels)
     machine += "; --ground-lit-map " + std::to_string(o.ground_lit_map);
+  if (o.exact_peak_shadows != render::RenderOptions{}.exact_peak_shadows)
+    machine += o.exact_peak_shadows ? "; --exact-peak-shadows" : "; --peak-cone-shadows";
   if (o.shading_rate != render::RenderOptions{}.shading_rate)
     machine += "; --shading-rate " + std::to_string(o.shading_rate) + " (SG rows of one sample per pixel)";
   // One-at-a-time around the default: every level count, cone count and resolution once.
@@ -798,6 +802,9 @@ CommandFn AddBenchRender(CLI::App* sub) {
                   "The ground's lit-fraction grid's texels per side at most (RenderOptions::ground_lit_map_texels; 0: "
                   "traced per cone)")
       ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
+  sub->add_flag("--exact-peak-shadows,!--peak-cone-shadows", o->exact_peak_shadows,
+                "The SG rows' peaks shadowed by a ray against the triangles, or by their cones through the voxels "
+                "(RenderOptions::exact_peak_shadows)");
   sub->add_option("--shading-rate", o->shading_rate,
                   "The SG rows' shading rate (RenderOptions::shading_rate; 2: a pixel per smooth 2x2 block)")
       ->check(CLI::IsMember({1, 2}));

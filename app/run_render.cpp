@@ -39,6 +39,7 @@ struct RenderCliOptions {
   bool bin_depth = false;
   double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
   int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
+  bool exact_peak_shadows = render::RenderOptions{}.exact_peak_shadows;
   int shading_rate = render::RenderOptions{}.shading_rate;
   std::string device = "gpu";
   bool json = false;
@@ -88,6 +89,7 @@ int RunRender(const RenderCliOptions& o) {
   options.depth_per_lobe = !o.bin_depth;
   options.overlap_cutoff = o.overlap_cutoff;
   options.ground_lit_map_texels = o.ground_lit_map;
+  options.exact_peak_shadows = o.exact_peak_shadows;
   options.shading_rate = o.shading_rate;
   options.read_layers = !o.composite_only;
   options.shade_lanes = o.shade_lanes;
@@ -225,6 +227,7 @@ int RunRender(const RenderCliOptions& o) {
           {"depth_per_lobe", !o.bin_depth},
           {"overlap_cutoff", o.overlap_cutoff},
           {"ground_lit_map_texels", o.ground_lit_map},
+          {"exact_peak_shadows", o.exact_peak_shadows},
           {"shading_rate", o.shading_rate},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
@@ -305,6 +308,8 @@ CommandFn AddRender(CLI::App* sub) {
                   "Texels per side at most of the grid the ground's lit fraction is read from under the car "
                   "(0: traced from every point a cone meets the ground)")
       ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
+  sub->add_flag("--exact-peak-shadows,!--peak-cone-shadows", o->exact_peak_shadows,
+                "Shadow each peak (a sun, a lamp) by a ray against the triangles, or by its cone through the voxels");
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");

@@ -73,6 +73,7 @@ if [ "$quick" = stages ]; then
     --repeat 10 --out "$results/render_$1.png" --json "${@:2}"; }
   render 720p --size 1280x720
   render 720p_composite --size 1280x720 --composite-only
+  render 720p_cone_peaks --size 1280x720 --composite-only --peak-cone-shadows
   render 720p_lanes2 --size 1280x720 --shade-lanes 2
   render 720p_lanes4 --size 1280x720 --shade-lanes 4
   render 720p_v64_l4 --size 1280x720 --voxels 64 --levels 4
@@ -95,6 +96,7 @@ elif [ "$quick" = shade ]; then
     --repeat 10 --out "$results/render_$1.png" --json "${@:2}"; }
   render 720p --size 1280x720
   render 720p_composite --size 1280x720 --composite-only
+  render 720p_cone_peaks --size 1280x720 --composite-only --peak-cone-shadows
   render 320 --size 320x180
   render 320_lanes1 --size 320x180 --shade-lanes 1
   render 720p_bin_depth --size 1280x720 --composite-only --bin-depth

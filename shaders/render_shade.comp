@@ -80,6 +80,13 @@ uniform int uTermsPerMaterial;
 uniform int uMaterialCount;
 int materialRow(int material) { return material * (uTermsPerMaterial + 1); }
 uniform float uSurfaceOffset;  // metres along the normal where the car's cones start
+// RenderOptions::exact_peak_shadows: each peak's visibility from one ray against the triangles
+// (from the surface point gSurface, uExactRayOffset along gNormal) instead of its cone.
+uniform int uExactTriangles;  // 0: the peaks' cones
+uniform float uExactRayOffset;
+#define BVH_BINDING 14  // 13: render_list_args.comp's
+#include "triangle_bvh.glsl"
+vec3 gSurface, gNormal;
 uniform int uGround;
 uniform vec2 uGroundCenter;  // xz
 uniform float uGroundHalfSize;
@@ -473,8 +480,12 @@ void tracePeakCones(vec3 p, out float peak_visibility[kMaxPeaks], inout uvec4 co
   if (uPeakCones == 0) return;
   for (int k = 0; k < kMaxPeaks; ++k) {
     if (k >= uPeakCount) continue;
-    float a = min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle);
-    peak_visibility[k] = traceCone(p, peaks[k].axis_lambda.xyz, a);
+    if (uExactTriangles > 0) {
+      peak_visibility[k] = rayOccluded(gSurface + uExactRayOffset * gNormal, peaks[k].axis_lambda.xyz) ? 0.0 : 1.0;
+    } else {
+      float a = min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle);
+      peak_visibility[k] = traceCone(p, peaks[k].axis_lambda.xyz, a);
+    }
     count.y += 1u;
   }
 }
@@ -614,6 +625,8 @@ void main() {
       vec3 p = gp.xyz, n = normalize(gn.xyz);
       vec3 wo = bendView(n, normalize(uCameraPosition - p));
       gOrigin = p + uSurfaceOffset * n;
+      gSurface = p;
+      gNormal = n;
       if (lane == 0) tracePeakCones(gOrigin, gPeakVisibility, gCount);
       int valid = 0;  // the pixel's lobes so far: lobe j is lane j mod SHADE_LANES's
       for (int k = 0; k < uTermsPerMaterial; ++k) {
@@ -645,6 +658,8 @@ void main() {
       if (t > 0.0 && abs(p.x - uGroundCenter.x) <= uGroundHalfSize && abs(p.z - uGroundCenter.y) <= uGroundHalfSize) {
         p.y = 0.0;
         const vec3 up = vec3(0, 1, 0);
+        gSurface = p;
+        gNormal = up;
         traceLobeCones(up, kCosineSgLambda, p, gSet);
         tracePeakCones(p, gPeakVisibility, gCount);
         gCount.y += uint(gSet.count);

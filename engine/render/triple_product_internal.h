@@ -11,9 +11,15 @@
 #include "engine/gl/objects.h"
 #include "engine/lighting/overlap_bins.h"
 #include "engine/render/triple_product_renderer.h"
+#include "engine/visibility/triangle_bvh.h"
 #include "engine/visibility/voxel_grid.h"
 
 namespace odvr::render::detail {
+
+// Where an exact ray against the triangles starts: this far (metres) off the surface along its
+// normal, past the surface's own triangles (the Monte-Carlo shader's shadow rays, and the peaks'
+// with RenderOptions::exact_peak_shadows).
+inline constexpr float kExactRayOffset = 1e-3f;
 
 // The invocations (per lane) of the first shading pass of a width×height render, as Render
 // dispatches it: the 2×2 blocks at shading rate 2, the pixels' centre samples when supersampling
@@ -118,7 +124,8 @@ struct ReferenceInputs {
   const std::vector<glm::vec3>* emission = nullptr;  // per material (nullptr: none emits)
   const PreparedLighting* lighting = nullptr;
   const lighting::OverlapBins* bins = nullptr;
-  const visibility::VoxelGrid* grid = nullptr;  // nullptr: nothing occludes
+  const visibility::VoxelGrid* grid = nullptr;   // nullptr: nothing occludes
+  const visibility::TriangleBvh* bvh = nullptr;  // RenderOptions::exact_peak_shadows: the peaks' rays
   RenderOptions options;
   glm::dvec2 ground_centre{0, 0};  // xz
   // Filled by ShadeReference (RenderOptions::ground_lit_map_texels): the ground's lit fraction at

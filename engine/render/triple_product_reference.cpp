@@ -210,7 +210,10 @@ void ShadePeaks(const material::Lobe& lobe, const std::vector<double>& peak_visi
   }
 }
 
-std::vector<double> TracePeakCones(const glm::dvec3& p, const ReferenceInputs& in, PixelCounts* count) {
+// `p` the cones' origin; `surface` and `normal` the point shaded, where an exact ray starts
+// (RenderOptions::exact_peak_shadows).
+std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surface, const glm::dvec3& normal,
+                                   const ReferenceInputs& in, PixelCounts* count) {
   const auto& peaks = in.lighting->peaks;
   const std::size_t traced = std::min<std::size_t>(peaks.size(), TripleProductRenderer::kMaxPeakCones);
   std::vector<double> v(traced, 1.0);
@@ -220,8 +223,13 @@ std::vector<double> TracePeakCones(const glm::dvec3& p, const ReferenceInputs& i
     return v;
   }
   for (std::size_t k = 0; k < traced; ++k) {
-    const double a = std::min(HalfValueAngle(peaks[k].lambda), visibility::kMaxConeHalfAngle);
-    v[k] = in.grid->TraceCone({glm::vec3(p), glm::vec3(peaks[k].axis), static_cast<float>(a)}, in.options.trace);
+    if (in.bvh) {
+      const glm::vec3 o = glm::vec3(surface) + kExactRayOffset * glm::vec3(normal);
+      v[k] = in.bvh->Occluded(o, glm::vec3(peaks[k].axis), 0.f, std::numeric_limits<float>::infinity()) ? 0.0 : 1.0;
+    } else {
+      const double a = std::min(HalfValueAngle(peaks[k].lambda), visibility::kMaxConeHalfAngle);
+      v[k] = in.grid->TraceCone({glm::vec3(p), glm::vec3(peaks[k].axis), static_cast<float>(a)}, in.options.trace);
+    }
     count->cones += 1;
   }
   return v;
@@ -264,7 +272,7 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
             const auto& terms = (*in.materials)[static_cast<std::size_t>(material)];
             const glm::dvec3 origin =
                 p + n * (in.grid ? in.options.surface_offset_voxels * in.grid->spec().voxel_size : 0.0);
-            const std::vector<double> peak_v = TracePeakCones(origin, in, &count);
+            const std::vector<double> peak_v = TracePeakCones(origin, p, n, in, &count);
             // Per traced peak: Σ over the lobes of ∫ lobe × peak, plus what the GGX lobes leave
             // out under it (material::GgxResidualUnderSgLight).
             std::vector<glm::dvec3> peak_sum(in.options.peak_cones ? peak_v.size() : 0, glm::dvec3(0));
@@ -329,7 +337,7 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
             result->ground_mask[idx] = 1.f;
             const material::Lobe up{material::CosineSg({0, 1, 0}), glm::dvec3(1), glm::dvec3(0), true};
             const ConeSet set = TraceLobeCones({up.sg.axis, up.sg.lambda, 1.0}, true, p, in);
-            const std::vector<double> peak_v = TracePeakCones(p, in, &count);
+            const std::vector<double> peak_v = TracePeakCones(p, p, {0, 1, 0}, in, &count);
             count.cones += static_cast<unsigned>(set.cones.size());
             bool lit = set.all_visible;
             for (double v : peak_v) lit = lit && v >= 1.0;

@@ -544,6 +544,7 @@ struct TripleProductRenderer::Impl {
   gl::Texture mc_environment{gl::NoCreate};
   gl::Program mc_program{gl::NoCreate};
   // RenderOptions::monte_carlo_exact_visibility: the BVH's nodes and triangles.
+  std::unique_ptr<visibility::TriangleBvh> bvh;  // the CPU reference's
   gl::Buffer bvh_nodes{gl::NoCreate}, bvh_triangles{gl::NoCreate};
   int bvh_triangle_count = 0;
 
@@ -745,11 +746,11 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
     std::vector<glm::vec4> padded(im.triangles.size());
     for (std::size_t i = 0; i < padded.size(); ++i) padded[i] = glm::vec4(im.triangles[i], 1.f);
     im.triangle_buffer = MakeBuffer(padded);
-    if (options_.monte_carlo_samples > 0 && options_.monte_carlo_exact_visibility) {
-      const visibility::TriangleBvh bvh(im.triangles);
-      im.bvh_nodes = MakeBuffer(bvh.nodes());
-      im.bvh_triangles = MakeBuffer(bvh.triangles());
-      im.bvh_triangle_count = static_cast<int>(bvh.triangle_count());
+    if ((options_.monte_carlo_samples > 0 && options_.monte_carlo_exact_visibility) || options_.exact_peak_shadows) {
+      im.bvh = std::make_unique<visibility::TriangleBvh>(im.triangles);
+      im.bvh_nodes = MakeBuffer(im.bvh->nodes());
+      im.bvh_triangles = MakeBuffer(im.bvh->triangles());
+      im.bvh_triangle_count = static_cast<int>(im.bvh->triangle_count());
     }
   } else {
     im.spec = visibility::VoxelGridSpec::Covering(glm::dvec3(-1), glm::dvec3(1), options_.voxel_resolution);
@@ -1117,6 +1118,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uTermsPerMaterial", kTermsPerMaterial)
         .Set("uMaterialCount", static_cast<int>(im.materials.size()))
         .Set("uSurfaceOffset", static_cast<float>(options_.surface_offset_voxels * im.spec.voxel_size))
+        .Set("uExactTriangles", options_.exact_peak_shadows && geometry ? im.bvh_triangle_count : 0)
+        .Set("uExactRayOffset", detail::kExactRayOffset)
         .Set("uGround", options_.ground ? 1 : 0)
         .Set("uWarpSplit", options_.lobes.warp == material::WarpMode::kAnisotropicSplit ? 1 : 0)
         .Set("uCosineAsSg", options_.lobes.cosine == material::CosineTerm::kAsSg ? 1 : 0)
@@ -1173,7 +1176,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
           .Set("uShadowRayHalfAngle", 1e-4f)
           .Set("uExactTriangles", geometry ? im.bvh_triangle_count : 0)
           // Off the surface by a millimetre: the G-buffer's positions are interpolated in float.
-          .Set("uExactRayOffset", 1e-3f)
+          .Set("uExactRayOffset", detail::kExactRayOffset)
           .Set("uExactVisibility", options_.monte_carlo_exact_visibility ? 1 : 0);
       if (options_.monte_carlo_exact_visibility) {
         // The ground's unshadowed irradiance from the map's upper half (world up), which the
@@ -1209,6 +1212,10 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     } else {
       im.cosine_table.BindBase(GL_SHADER_STORAGE_BUFFER, 8);
       im.ground_table.BindBase(GL_SHADER_STORAGE_BUFFER, 11);
+      if (options_.exact_peak_shadows && im.bvh_triangle_count > 0) {
+        im.bvh_nodes.BindBase(GL_SHADER_STORAGE_BUFFER, 14);
+        im.bvh_triangles.BindBase(GL_SHADER_STORAGE_BUFFER, 15);
+      }
       if (options_.ground) {
         sp.Set("uGroundTablePass", 1).Use();
         glDispatchCompute(1, 1, 1);
@@ -1455,6 +1462,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
     in.lighting = &im.lighting;
     in.bins = im.bins.get();
     in.grid = geometry ? im.cpu_grid.get() : nullptr;
+    in.bvh = geometry && options_.exact_peak_shadows ? im.bvh.get() : nullptr;
     in.options = options_;
     in.ground_centre = ground_centre;
     if (k > 1) {

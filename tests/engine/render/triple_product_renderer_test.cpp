@@ -429,6 +429,65 @@ TEST_F(TripleProductRendererGL, ShadeLanesGiveTheSamePictureAndCounts) {
   EXPECT_THROW(bad.Check(), odvr::Error);
 }
 
+// RenderOptions::exact_peak_shadows: a floor under a roof 4 cm above it (about a voxel at 64³
+// over the scene), lit by a sun straight above, seen from inside the gap. The sun's cone starts 2
+// voxels off the floor, past the roof, and lets the sun through as if there were no roof; a ray
+// stops at the roof. GPU and CPU reference alike.
+TEST_F(TripleProductRendererGL, ExactPeakShadowsSeeARoofNearerThanTheConesStart) {
+  const auto scene = [](bool roof) {
+    scene::GltfScene s;
+    s.materials = {Pbr("floor", {0.5f, 0.5f, 0.5f}, 0.f, 0.9f)};
+    s.primitives.push_back(BoxPrimitive({-1.f, 0.40f, -1.f}, {1.f, 0.42f, 1.f}, 0));
+    if (roof) s.primitives.push_back(BoxPrimitive({-1.f, 0.46f, -1.f}, {0.f, 0.48f, 1.f}, 0));  // over x < 0
+    odvr::testing::Finish(&s);
+    return s;
+  };
+  lighting::SgLighting sun;
+  sun.constant = glm::vec3(0.01f);
+  sun.peaks.push_back({glm::dvec3(0, 1, 0), 3000.0, glm::vec3(3000.f)});
+  const PinholeCamera view = PinholeCamera::LookAt({0.9, 0.45, 0.0}, {-0.5, 0.42, 0.0}, 6, 96, 48);
+  // Mean luminance of the floor's top under the roof (x in [−0.8, −0.2]), pixels the floor covers.
+  const auto under_roof = [&](const RenderResult& r) {
+    double sum = 0;
+    int n = 0;
+    for (int y = 0; y < view.height; ++y)
+      for (int x = 0; x < view.width; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * view.width + x;
+        const glm::dvec3 d = view.Ray(x + 0.5, y + 0.5);
+        if (r.car_alpha[i] < 0.5f || !(d.y < 0)) continue;
+        const glm::dvec3 p = view.position + ((0.42 - view.position.y) / d.y) * d;
+        if (p.x < -0.8 || p.x > -0.2 || std::abs(p.z) > 0.5) continue;
+        sum += r.car.rgb[3 * i] + r.car.rgb[3 * i + 1] + r.car.rgb[3 * i + 2];
+        ++n;
+      }
+    EXPECT_GT(n, 50);
+    return sum / std::max(n, 1);
+  };
+  double lum[2][2][2];  // [exact][roof][device: gpu, cpu]
+  for (bool exact : {false, true})
+    for (bool roof : {false, true}) {
+      RenderOptions o;
+      o.voxel_resolution = 64;
+      o.ground = false;
+      o.exact_peak_shadows = exact;
+      TripleProductRenderer r(scene(roof), glm::dmat4(1.0), o);
+      r.SetLighting(sun);
+      lum[exact][roof][0] = under_roof(r.Render(view, ShadeDevice::kGpu));
+      lum[exact][roof][1] = under_roof(r.Render(view, ShadeDevice::kCpu));
+      std::printf("%s, %s: the floor under the roof's place %.3f (CPU %.3f)\n", exact ? "rays" : "cones",
+                  roof ? "roof" : "no roof", lum[exact][roof][0], lum[exact][roof][1]);
+    }
+  for (int device : {0, 1}) {
+    EXPECT_GT(lum[0][0][device], 1.0) << device;                       // the sun lights the open floor
+    EXPECT_GT(lum[0][1][device], 0.8 * lum[0][0][device]) << device;   // the cone leaks under the roof
+    EXPECT_LT(lum[1][1][device], 0.05 * lum[1][0][device]) << device;  // the ray does not
+    EXPECT_NEAR(lum[1][0][device], lum[0][0][device], 0.02 * lum[0][0][device]) << device;  // alike in the open
+  }
+  for (bool exact : {false, true})
+    for (bool roof : {false, true})
+      EXPECT_NEAR(lum[exact][roof][0], lum[exact][roof][1], 0.02 * lum[exact][0][0]) << exact << roof;
+}
+
 // shade_lanes 0 (the default): 4 lanes only where one invocation per pixel would leave a GPU
 // mostly idle (320×180, as the H200 measured: 7.4 ms against 12.4), 1 where the pass fills it
 // (1280×720: 27.0 against 35.7 with 4) and on a CPU rasterizer at any size.
