@@ -87,6 +87,8 @@ uniform float uExactRayOffset;
 #define BVH_BINDING 14  // 13: render_list_args.comp's
 #include "triangle_bvh.glsl"
 vec3 gSurface, gNormal;
+const float kPeakRingMinHalfAngle = 0.017453292;  // detail::kPeakRingMinHalfAngle, kPeakRingScale
+const float kPeakRingScale = 1.3;
 uniform int uGround;
 uniform vec2 uGroundCenter;  // xz
 uniform float uGroundHalfSize;
@@ -481,7 +483,21 @@ void tracePeakCones(vec3 p, out float peak_visibility[kMaxPeaks], inout uvec4 co
   for (int k = 0; k < kMaxPeaks; ++k) {
     if (k >= uPeakCount) continue;
     if (uExactTriangles > 0) {
-      peak_visibility[k] = rayOccluded(gSurface + uExactRayOffset * gNormal, peaks[k].axis_lambda.xyz) ? 0.0 : 1.0;
+      // detail::PeakRayDirections: the axis, and for a peak wider than 1° six rays around it.
+      vec3 o = gSurface + uExactRayOffset * gNormal, axis = peaks[k].axis_lambda.xyz;
+      float a = halfValueAngle(peaks[k].axis_lambda.w);
+      float lit = rayOccluded(o, axis) ? 0.0 : 1.0;
+      if (a >= kPeakRingMinHalfAngle) {
+        vec3 helper = abs(axis.y) < 0.9 ? vec3(0, 1, 0) : vec3(1, 0, 0);
+        vec3 e1 = normalize(cross(helper, axis)), e2 = cross(axis, e1);
+        float r = min(kPeakRingScale * a, uMaxConeHalfAngle);
+        for (int j = 0; j < 6; ++j) {
+          float phi = kTwoPi * float(j) / 6.0;
+          lit += rayOccluded(o, normalize(cos(r) * axis + sin(r) * (cos(phi) * e1 + sin(phi) * e2))) ? 0.0 : 1.0;
+        }
+        lit /= 7.0;
+      }
+      peak_visibility[k] = lit;
     } else {
       float a = min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle);
       peak_visibility[k] = traceCone(p, peaks[k].axis_lambda.xyz, a);

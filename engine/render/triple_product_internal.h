@@ -21,6 +21,16 @@ namespace odvr::render::detail {
 // with RenderOptions::exact_peak_shadows).
 inline constexpr float kExactRayOffset = 1e-3f;
 
+// RenderOptions::exact_peak_shadows: a peak wider than kPeakRingMinHalfAngle (its half-value
+// angle; 1°: the maps' suns are 0.4–0.6°, the studio's key light 2°) is sampled by its axis and
+// six rays around it at kPeakRingScale half-value angles, their visibilities averaged: the
+// ring's second moment, (6/7) r², is the SG's 2/λ at r ≈ 1.3 half-value angles, so a lamp casts
+// a penumbra as wide as its own. A narrower peak is one ray. PeakRayDirections gives the rays
+// (render_shade.comp's tracePeakCones builds the same).
+inline constexpr double kPeakRingMinHalfAngle = 0.017453292519943295;
+inline constexpr double kPeakRingScale = 1.3;
+std::vector<glm::dvec3> PeakRayDirections(const glm::dvec3& axis, double lambda);
+
 // The invocations (per lane) of the first shading pass of a width×height render, as Render
 // dispatches it: the 2×2 blocks at shading rate 2, the pixels' centre samples when supersampling
 // adaptively, every sample otherwise. What RenderOptions::shade_lanes 0 picks its lanes by.

@@ -225,7 +225,11 @@ std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surfac
   for (std::size_t k = 0; k < traced; ++k) {
     if (in.bvh) {
       const glm::vec3 o = glm::vec3(surface) + kExactRayOffset * glm::vec3(normal);
-      v[k] = in.bvh->Occluded(o, glm::vec3(peaks[k].axis), 0.f, std::numeric_limits<float>::infinity()) ? 0.0 : 1.0;
+      const std::vector<glm::dvec3> rays = PeakRayDirections(peaks[k].axis, peaks[k].lambda);
+      double lit = 0;
+      for (const glm::dvec3& d : rays)
+        lit += in.bvh->Occluded(o, glm::vec3(d), 0.f, std::numeric_limits<float>::infinity()) ? 0.0 : 1.0;
+      v[k] = lit / static_cast<double>(rays.size());
     } else {
       const double a = std::min(HalfValueAngle(peaks[k].lambda), visibility::kMaxConeHalfAngle);
       v[k] = in.grid->TraceCone({glm::vec3(p), glm::vec3(peaks[k].axis), static_cast<float>(a)}, in.options.trace);
@@ -236,6 +240,21 @@ std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surfac
 }
 
 }  // namespace
+
+std::vector<glm::dvec3> PeakRayDirections(const glm::dvec3& axis, double lambda) {
+  const double a = HalfValueAngle(lambda);
+  if (a < kPeakRingMinHalfAngle) return {axis};
+  // The basis as the shader's cone rings build it (lobeConeAxes), in float there.
+  const glm::dvec3 helper = std::abs(axis.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+  const glm::dvec3 e1 = glm::normalize(glm::cross(helper, axis)), e2 = glm::cross(axis, e1);
+  const double r = std::min(kPeakRingScale * a, visibility::kMaxConeHalfAngle);
+  std::vector<glm::dvec3> rays = {axis};
+  for (int j = 0; j < 6; ++j) {
+    const double phi = 2 * 3.14159265358979323846 * j / 6;
+    rays.push_back(glm::normalize(std::cos(r) * axis + std::sin(r) * (std::cos(phi) * e1 + std::sin(phi) * e2)));
+  }
+  return rays;
+}
 
 double HalfValueAngle(double lambda) {
   return lambda > std::log(2.0) / 2 ? lighting::HalfValueAngleForLambda(lambda) : 3.14159265358979323846;

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <glm/geometric.hpp>
@@ -486,6 +487,59 @@ TEST_F(TripleProductRendererGL, ExactPeakShadowsSeeARoofNearerThanTheConesStart)
   for (bool exact : {false, true})
     for (bool roof : {false, true})
       EXPECT_NEAR(lum[exact][roof][0], lum[exact][roof][1], 0.02 * lum[exact][0][0]) << exact << roof;
+}
+
+// A peak wider than 1° is seven rays, the axis and a ring whose second moment is the SG's: a lamp's
+// penumbra. A sun is one ray.
+TEST(PeakRays, OneForASunSevenForALamp) {
+  const glm::dvec3 axis = glm::normalize(glm::dvec3(0.3, 0.8, -0.2));
+  const auto sun = detail::PeakRayDirections(axis, 20000.0);  // half-value 0.48°
+  ASSERT_EQ(sun.size(), 1u);
+  EXPECT_EQ(sun[0], axis);
+  for (double lambda : {3000.0, 300.0}) {  // 1.2° and 3.9°
+    const auto lamp = detail::PeakRayDirections(axis, lambda);
+    ASSERT_EQ(lamp.size(), 7u);
+    EXPECT_EQ(lamp[0], axis);
+    double second = 0;
+    glm::dvec3 mean(0);
+    for (const auto& d : lamp) {
+      EXPECT_NEAR(glm::length(d), 1.0, 1e-12);
+      const double t = std::acos(std::clamp(glm::dot(d, axis), -1.0, 1.0));
+      second += t * t / 7;
+      mean += d / 7.0;
+    }
+    EXPECT_NEAR(second, 2 / lambda, 0.05 * 2 / lambda) << lambda;  // E[θ²] of e^{λ(cos θ − 1)}
+    EXPECT_NEAR(glm::length(glm::cross(glm::normalize(mean), axis)), 0.0, 1e-9) << lambda;
+  }
+}
+
+// The ground under a wide lamp has a penumbra as wide as the lamp: the shadow ratio takes values
+// between its umbra's and the open ground's on more pixels than under a sun, GPU and CPU alike.
+TEST_F(TripleProductRendererGL, AWidePeakCastsAPenumbra) {
+  const auto penumbra = [](double lambda) {
+    lighting::SgLighting l;
+    l.constant = glm::vec3(0.02f);
+    l.peaks.push_back({glm::normalize(glm::dvec3(-0.4, 1.0, 0.2)), lambda, glm::vec3(static_cast<float>(lambda))});
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    TripleProductRenderer r(SphereAndBox(), glm::dmat4(1.0), o);
+    r.SetLighting(l);
+    std::array<int, 2> partial{};
+    int d = 0;
+    for (ShadeDevice device : {ShadeDevice::kGpu, ShadeDevice::kCpu}) {
+      const RenderResult res = r.Render(View(), device);
+      for (std::size_t i = 0; i < res.ground_mask.size(); ++i) {
+        const double ratio = Luma(&res.shadow.rgb[3 * i]);
+        partial[d] += res.ground_mask[i] > 0.5f && ratio > 0.2 && ratio < 0.8;
+      }
+      ++d;
+    }
+    std::printf("lambda %.0f: %d ground pixels in the penumbra (CPU %d)\n", lambda, partial[0], partial[1]);
+    EXPECT_NEAR(partial[0], partial[1], 0.1 * partial[1] + 5) << lambda;
+    return partial[0];
+  };
+  const int sun = penumbra(30000.0), lamp = penumbra(150.0);  // half-value 0.39° and 5.5°
+  EXPECT_GT(lamp, 3 * sun + 20);
 }
 
 // shade_lanes 0 (the default): 4 lanes only where one invocation per pixel would leave a GPU
