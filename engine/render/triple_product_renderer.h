@@ -110,7 +110,8 @@ struct RenderOptions {
   // instead of its cone through the voxels. A peak's cone starts a few voxels out (ConeTraceOptions::
   // start_offset_voxels) and sees occluders fattened by the conservative voxelization, so it lets a
   // sun through a recess whose lip is nearer than its first sample and shades the edge of a shadow
-  // too wide; a ray does neither, and a sun's disc is narrow enough for one. Against the Cycles
+  // too wide; a ray does neither, and a sun's disc is narrow enough for one (a peak wider than 1°,
+  // a lamp, takes seven: detail::PeakRayDirections). Against the Cycles
   // references (render_accuracy.md) the car's error fell on four of seven (sky_diffuse 0.064 →
   // 0.052, studio_glossy 0.139 → 0.126) and the shadow's on all four with a peak, for no shading
   // time on llvmpipe; street_a's rose 0.131 → 0.133. Off: each peak's cone, as the seed.
