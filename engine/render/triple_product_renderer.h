@@ -114,7 +114,8 @@ struct RenderOptions {
   // a lamp, takes seven: detail::PeakRayDirections). Against the Cycles
   // references (render_accuracy.md) the car's error fell on four of seven (sky_diffuse 0.064 →
   // 0.052, studio_glossy 0.139 → 0.126) and the shadow's on all four with a peak, for no shading
-  // time on llvmpipe; street_a's rose 0.131 → 0.133. Off: each peak's cone, as the seed.
+  // time on llvmpipe under a sun (studio's 2° lamp, seven rays: 1.2–1.7×; the demo 7 %);
+  // street_a's rose 0.131 → 0.133. Off: each peak's cone, as the seed.
   bool exact_peak_shadows = true;
   bool ground = true;            // the shadow catcher
   double ground_half_size = 30;  // metres around the model's centre (Cycles' 60 m catcher)
