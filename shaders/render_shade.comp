@@ -80,8 +80,9 @@ uniform int uTermsPerMaterial;
 uniform int uMaterialCount;
 int materialRow(int material) { return material * (uTermsPerMaterial + 1); }
 uniform float uSurfaceOffset;  // metres along the normal where the car's cones start
-// RenderOptions::exact_peak_shadows: each peak's visibility from one ray against the triangles
-// (from the surface point gSurface, uExactRayOffset along gNormal) instead of its cone.
+// RenderOptions::exact_peak_shadows: each peak's visibility from rays against the triangles (one,
+// or seven for a peak wider than 1°; from the surface point gSurface, uExactRayOffset along
+// gNormal) instead of its cone.
 uniform int uExactTriangles;  // 0: the peaks' cones
 uniform float uExactRayOffset;
 #define BVH_BINDING 14  // 13: render_list_args.comp's

@@ -6,6 +6,7 @@
 #include <glm/mat3x3.hpp>
 #include <glm/vec2.hpp>
 #include <memory>
+#include <numbers>
 #include <vector>
 
 #include "engine/gl/objects.h"
@@ -27,7 +28,7 @@ inline constexpr float kExactRayOffset = 1e-3f;
 // ring's second moment, (6/7) r², is the SG's 2/λ at r ≈ 1.3 half-value angles, so a lamp casts
 // a penumbra as wide as its own. A narrower peak is one ray. PeakRayDirections gives the rays
 // (render_shade.comp's tracePeakCones builds the same).
-inline constexpr double kPeakRingMinHalfAngle = 0.017453292519943295;
+inline constexpr double kPeakRingMinHalfAngle = std::numbers::pi / 180;
 inline constexpr double kPeakRingScale = 1.3;
 std::vector<glm::dvec3> PeakRayDirections(const glm::dvec3& axis, double lambda);
 

@@ -244,13 +244,13 @@ std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surfac
 std::vector<glm::dvec3> PeakRayDirections(const glm::dvec3& axis, double lambda) {
   const double a = HalfValueAngle(lambda);
   if (a < kPeakRingMinHalfAngle) return {axis};
-  // The basis as the shader's cone rings build it (lobeConeAxes), in float there.
+  // The same basis and ring as render_shade.comp's tracePeakCones builds, in float there.
   const glm::dvec3 helper = std::abs(axis.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
   const glm::dvec3 e1 = glm::normalize(glm::cross(helper, axis)), e2 = glm::cross(axis, e1);
   const double r = std::min(kPeakRingScale * a, visibility::kMaxConeHalfAngle);
   std::vector<glm::dvec3> rays = {axis};
   for (int j = 0; j < 6; ++j) {
-    const double phi = 2 * 3.14159265358979323846 * j / 6;
+    const double phi = std::numbers::pi * j / 3;
     rays.push_back(glm::normalize(std::cos(r) * axis + std::sin(r) * (std::cos(phi) * e1 + std::sin(phi) * e2)));
   }
   return rays;

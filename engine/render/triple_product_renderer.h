@@ -106,7 +106,7 @@ struct RenderOptions {
   int cone_rings = 1;          // per broad lobe: 0 → 1 cone, 1 → 7, 2 → 19, 3 → 37
   int voxel_resolution = 128;  // 64..512, a power of two
   bool peak_cones = true;      // each peak its own visibility cone (sharp sun shadows)
-  // Each peak's visibility from one ray against the triangles (a BVH, visibility/triangle_bvh.h)
+  // Each peak's visibility from rays against the triangles (a BVH, visibility/triangle_bvh.h)
   // instead of its cone through the voxels. A peak's cone starts a few voxels out (ConeTraceOptions::
   // start_offset_voxels) and sees occluders fattened by the conservative voxelization, so it lets a
   // sun through a recess whose lip is nearer than its first sample and shades the edge of a shadow
