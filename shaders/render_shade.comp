@@ -110,13 +110,18 @@ uniform int uGroundPeakCount;
 uniform vec4 uGroundPeakAxis[8];  // axis, cone half-angle
 uniform float uGroundPeakShare[8];
 
+float peakRaysVisibility(vec3 o, int k);
+
 // detail::GroundLitFraction: the ground's lit fraction at q for its broad light (one cone up) and
-// each traced peak (its own cone), weighted by their shares of the ground's irradiance.
+// each traced peak (its own cone, or its rays with uExactTriangles), weighted by their shares of
+// the ground's irradiance.
 float groundLitFraction(vec3 q) {
   float rest = 1.0, lit = 0.0;
   for (int k = 0; k < 8; ++k) {
     if (k >= uGroundPeakCount || uGroundPeakShare[k] <= 0.0) continue;
-    lit += uGroundPeakShare[k] * traceCone(q, uGroundPeakAxis[k].xyz, uGroundPeakAxis[k].w);
+    lit += uGroundPeakShare[k] * (uExactTriangles > 0
+                                      ? peakRaysVisibility(q + vec3(0.0, uExactRayOffset, 0.0), k)
+                                      : traceCone(q, uGroundPeakAxis[k].xyz, uGroundPeakAxis[k].w));
     rest -= uGroundPeakShare[k];
   }
   return lit + max(rest, 0.0) * traceCone(q, vec3(0, 1, 0), uGroundLitHalfAngle);
@@ -478,27 +483,30 @@ void shadePeaks(vec3 lobe_axis, float lobe_lambda, bool cosine, in float peak_vi
   }
 }
 
+// Peak k's visibility from o by rays against the triangles (detail::PeakRayDirections: the axis,
+// and for a peak wider than 1° six rays around it).
+float peakRaysVisibility(vec3 o, int k) {
+  vec3 axis = peaks[k].axis_lambda.xyz;
+  float a = halfValueAngle(peaks[k].axis_lambda.w);
+  float lit = rayOccluded(o, axis) ? 0.0 : 1.0;
+  if (a < kPeakRingMinHalfAngle) return lit;
+  vec3 helper = abs(axis.y) < 0.9 ? vec3(0, 1, 0) : vec3(1, 0, 0);
+  vec3 e1 = normalize(cross(helper, axis)), e2 = cross(axis, e1);
+  float r = min(kPeakRingScale * a, uMaxConeHalfAngle);
+  for (int j = 0; j < 6; ++j) {
+    float phi = kTwoPi * float(j) / 6.0;
+    lit += rayOccluded(o, normalize(cos(r) * axis + sin(r) * (cos(phi) * e1 + sin(phi) * e2))) ? 0.0 : 1.0;
+  }
+  return lit / 7.0;
+}
+
 void tracePeakCones(vec3 p, out float peak_visibility[kMaxPeaks], inout uvec4 count) {
   for (int k = 0; k < kMaxPeaks; ++k) peak_visibility[k] = 1.0;
   if (uPeakCones == 0) return;
   for (int k = 0; k < kMaxPeaks; ++k) {
     if (k >= uPeakCount) continue;
     if (uExactTriangles > 0) {
-      // detail::PeakRayDirections: the axis, and for a peak wider than 1° six rays around it.
-      vec3 o = gSurface + uExactRayOffset * gNormal, axis = peaks[k].axis_lambda.xyz;
-      float a = halfValueAngle(peaks[k].axis_lambda.w);
-      float lit = rayOccluded(o, axis) ? 0.0 : 1.0;
-      if (a >= kPeakRingMinHalfAngle) {
-        vec3 helper = abs(axis.y) < 0.9 ? vec3(0, 1, 0) : vec3(1, 0, 0);
-        vec3 e1 = normalize(cross(helper, axis)), e2 = cross(axis, e1);
-        float r = min(kPeakRingScale * a, uMaxConeHalfAngle);
-        for (int j = 0; j < 6; ++j) {
-          float phi = kTwoPi * float(j) / 6.0;
-          lit += rayOccluded(o, normalize(cos(r) * axis + sin(r) * (cos(phi) * e1 + sin(phi) * e2))) ? 0.0 : 1.0;
-        }
-        lit /= 7.0;
-      }
-      peak_visibility[k] = lit;
+      peak_visibility[k] = peakRaysVisibility(gSurface + uExactRayOffset * gNormal, k);
     } else {
       float a = min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle);
       peak_visibility[k] = traceCone(p, peaks[k].axis_lambda.xyz, a);

@@ -78,20 +78,27 @@ struct PreparedLighting {
 };
 
 // The ground's lit fraction at q (y = 0) for the bounce the car sees there: the up cone for the
-// broad light and each traced peak's own cone, weighted by their shares of the ground's irradiance.
-// `trace(origin, axis, half_angle)` is the cone tracer.
-template <class Trace>
+// broad light and each traced peak's visibility, weighted by their shares of the ground's
+// irradiance. `trace(origin, axis, half_angle)` is the cone tracer; `peak(q, k, half_angle)` peak
+// k's visibility from q (its cone, or its rays with RenderOptions::exact_peak_shadows).
+template <class Trace, class Peak>
 double GroundLitFraction(const glm::dvec3& q, const PreparedLighting& l, bool peak_cones, double up_half_angle,
-                         double max_half_angle, const Trace& trace) {
+                         double max_half_angle, const Trace& trace, const Peak& peak) {
   double rest = 1.0, lit = 0.0;
   for (std::size_t k = 0; peak_cones && k < l.ground_peak_share.size(); ++k) {
     const double share = l.ground_peak_share[k];
     if (share <= 0) continue;
-    const double a = std::min(HalfValueAngle(l.peaks[k].lambda), max_half_angle);
-    lit += share * trace(q, l.peaks[k].axis, a);
+    lit += share * peak(q, k, std::min(HalfValueAngle(l.peaks[k].lambda), max_half_angle));
     rest -= share;
   }
   return lit + std::max(rest, 0.0) * trace(q, glm::dvec3(0, 1, 0), up_half_angle);
+}
+// The same with every peak's own cone.
+template <class Trace>
+double GroundLitFraction(const glm::dvec3& q, const PreparedLighting& l, bool peak_cones, double up_half_angle,
+                         double max_half_angle, const Trace& trace) {
+  return GroundLitFraction(q, l, peak_cones, up_half_angle, max_half_angle, trace,
+                           [&](const glm::dvec3& o, std::size_t k, double a) { return trace(o, l.peaks[k].axis, a); });
 }
 
 // RenderOptions::ground_lit_map_texels: GroundLitFraction on a grid over the ground, read

@@ -28,6 +28,18 @@ struct ConeSet {
 
 double GroundLitFractionAt(double x, double z, const ReferenceInputs& in);
 
+// render_shade.comp's peakRaysVisibility: the share of the peak's rays (PeakRayDirections) from
+// kExactRayOffset along the normal off the surface point that no triangle stops.
+double PeakRaysVisibility(const glm::dvec3& surface, const glm::dvec3& normal, const lighting::RgbSg& peak,
+                          const visibility::TriangleBvh& bvh) {
+  const glm::vec3 o = glm::vec3(surface) + kExactRayOffset * glm::vec3(normal);
+  const std::vector<glm::dvec3> rays = PeakRayDirections(peak.axis, peak.lambda);
+  double lit = 0;
+  for (const glm::dvec3& d : rays)
+    lit += bvh.Occluded(o, glm::vec3(d), 0.f, std::numeric_limits<float>::infinity()) ? 0.0 : 1.0;
+  return lit / static_cast<double>(rays.size());
+}
+
 // render_shade.comp's groundLit: the ground's lit fraction where a cone from p along dir meets it.
 double GroundLit(const glm::dvec3& p, const glm::dvec3& dir, const ReferenceInputs& in) {
   if (!in.options.ground || !in.options.ground_shadows_bounce || dir.y >= 0 || p.y <= 0) return 1.0;
@@ -40,11 +52,15 @@ double GroundLit(const glm::dvec3& p, const glm::dvec3& dir, const ReferenceInpu
 }
 
 double GroundLitFractionAt(double x, double z, const ReferenceInputs& in) {
-  return GroundLitFraction(
-      glm::dvec3(x, 0, z), *in.lighting, in.options.peak_cones, kGroundLitHalfAngle, visibility::kMaxConeHalfAngle,
-      [&](const glm::dvec3& o, const glm::dvec3& axis, double a) {
-        return in.grid->TraceCone({glm::vec3(o), glm::vec3(axis), static_cast<float>(a)}, in.options.trace);
-      });
+  const auto trace = [&](const glm::dvec3& o, const glm::dvec3& axis, double a) {
+    return in.grid->TraceCone({glm::vec3(o), glm::vec3(axis), static_cast<float>(a)}, in.options.trace);
+  };
+  return GroundLitFraction(glm::dvec3(x, 0, z), *in.lighting, in.options.peak_cones, kGroundLitHalfAngle,
+                           visibility::kMaxConeHalfAngle, trace, [&](const glm::dvec3& q, std::size_t k, double a) {
+                             const lighting::RgbSg& pk = in.lighting->peaks[k];
+                             return in.bvh ? PeakRaysVisibility(q, glm::dvec3(0, 1, 0), pk, *in.bvh)
+                                           : trace(q, pk.axis, a);
+                           });
 }
 
 // RenderOptions::ground_lit_map_texels: the grid render_shade.comp's pass uGroundTablePass == 2
@@ -224,12 +240,7 @@ std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surfac
   }
   for (std::size_t k = 0; k < traced; ++k) {
     if (in.bvh) {
-      const glm::vec3 o = glm::vec3(surface) + kExactRayOffset * glm::vec3(normal);
-      const std::vector<glm::dvec3> rays = PeakRayDirections(peaks[k].axis, peaks[k].lambda);
-      double lit = 0;
-      for (const glm::dvec3& d : rays)
-        lit += in.bvh->Occluded(o, glm::vec3(d), 0.f, std::numeric_limits<float>::infinity()) ? 0.0 : 1.0;
-      v[k] = lit / static_cast<double>(rays.size());
+      v[k] = PeakRaysVisibility(surface, normal, peaks[k], *in.bvh);
     } else {
       const double a = std::min(HalfValueAngle(peaks[k].lambda), visibility::kMaxConeHalfAngle);
       v[k] = in.grid->TraceCone({glm::vec3(p), glm::vec3(peaks[k].axis), static_cast<float>(a)}, in.options.trace);

@@ -115,7 +115,9 @@ struct RenderOptions {
   // references (render_accuracy.md) the car's error fell on four of seven (sky_diffuse 0.064 →
   // 0.052, studio_glossy 0.139 → 0.126) and the shadow's on all four with a peak, for no shading
   // time on llvmpipe under a sun (studio's 2° lamp, seven rays: 1.2–1.7×; the demo 7 %);
-  // street_a's rose 0.131 → 0.133. Off: each peak's cone, as the seed.
+  // street_a's rose 0.131 → 0.133. The ground's lit fraction under the car (ground_shadows_bounce)
+  // takes the same rays from the ground, so the shadow the car sees in its bounce is the one drawn
+  // on the catcher (studio_glossy 0.126 → 0.124). Off: each peak's cone, as the seed.
   bool exact_peak_shadows = true;
   bool ground = true;            // the shadow catcher
   double ground_half_size = 30;  // metres around the model's centre (Cycles' 60 m catcher)
@@ -123,10 +125,11 @@ struct RenderOptions {
   // darkens that bounce. Per lobe, the cones whose axes meet the ground within the catcher take
   // off the ground's radiance (the lighting's cosine-weighted mean below the horizon) times their
   // visibility and the ground's shadowed fraction there: one cone straight up of
-  // kGroundLitHalfAngle for the broad light, each traced peak's own cone for its share
-  // (detail::GroundLitFraction). Scaling every lighting SG's share in those cones instead took
-  // the sky's light too, wherever the SGs carry the lighting across the horizon: studio_diffuse
-  // read 0.154 against Cycles, 0.117 now (docs/benchmarks/render_accuracy.md).
+  // kGroundLitHalfAngle for the broad light, each traced peak's own cone (its rays with
+  // exact_peak_shadows) for its share (detail::GroundLitFraction). Scaling every lighting SG's
+  // share in those cones instead took the sky's light too, wherever the SGs carry the lighting
+  // across the horizon: studio_diffuse read 0.154 against Cycles, 0.117 then
+  // (docs/benchmarks/render_accuracy.md).
   // Cycles' catcher is shadowed where the car sees it: rendered with the unshadowed stand-in
   // instead, studio_glossy lands 31 % (mean relative) off its reference, 8 % with the shadow
   // (docs/benchmarks/render_accuracy.md).

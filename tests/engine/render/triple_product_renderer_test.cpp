@@ -489,6 +489,57 @@ TEST_F(TripleProductRendererGL, ExactPeakShadowsSeeARoofNearerThanTheConesStart)
       EXPECT_NEAR(lum[exact][roof][0], lum[exact][roof][1], 0.02 * lum[exact][0][0]) << exact << roof;
 }
 
+// The car's bounce off the ground it shadows takes the peaks' rays too: a board 0.3 m up, under a
+// sun straight above, leaves the ground beneath it in its shadow. A pebble 6 m away widens the
+// voxel cube to 64 voxels of 11 cm, so a cone from the ground starts 0.44 m up, past the board,
+// and the cones light that ground; the rays do not, and the
+// board's underside, which sees only that ground, is darker by the sun's share of the ground's
+// light. Before the ground's lit fraction took the rays, both read alike.
+TEST_F(TripleProductRendererGL, TheGroundsLitFractionTakesThePeaksRays) {
+  scene::GltfScene board;
+  board.materials = {Pbr("board", {0.8f, 0.8f, 0.8f}, 0.f, 0.9f)};
+  board.primitives.push_back(BoxPrimitive({-1.f, 0.30f, -1.f}, {0.f, 0.32f, 1.f}, 0));
+  board.primitives.push_back(BoxPrimitive({6.f, 0.f, 0.f}, {6.1f, 0.1f, 0.1f}, 0));
+  odvr::testing::Finish(&board);
+  lighting::SgLighting sun;
+  sun.constant = glm::vec3(1.f);  // the ground's bounce: the lighting below the horizon
+  sun.peaks.push_back({glm::dvec3(0, 1, 0), 3000.0, glm::vec3(3000.f)});
+  const PinholeCamera view = PinholeCamera::LookAt({1.2, 0.1, 0.0}, {-0.5, 0.3, 0.0}, 40, 96, 48);
+  // Mean luminance of the board's underside over x in [−0.8, −0.2].
+  const auto underside = [&](const RenderResult& r) {
+    double sum = 0;
+    int n = 0;
+    for (int y = 0; y < view.height; ++y)
+      for (int x = 0; x < view.width; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * view.width + x;
+        const glm::dvec3 d = view.Ray(x + 0.5, y + 0.5);
+        if (r.car_alpha[i] < 0.5f || !(d.y > 0)) continue;
+        const glm::dvec3 p = view.position + ((0.30 - view.position.y) / d.y) * d;
+        if (p.x < -0.8 || p.x > -0.2 || std::abs(p.z) > 0.5) continue;
+        sum += r.car.rgb[3 * i] + r.car.rgb[3 * i + 1] + r.car.rgb[3 * i + 2];
+        ++n;
+      }
+    EXPECT_GT(n, 50);
+    return sum / std::max(n, 1);
+  };
+  double lum[2][2];  // [exact][device: gpu, cpu]
+  for (bool exact : {false, true}) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.exact_peak_shadows = exact;
+    TripleProductRenderer r(board, glm::dmat4(1.0), o);
+    r.SetLighting(sun);
+    lum[exact][0] = underside(r.Render(view, ShadeDevice::kGpu));
+    lum[exact][1] = underside(r.Render(view, ShadeDevice::kCpu));
+    std::printf("%s: the board's underside %.4f (CPU %.4f)\n", exact ? "rays" : "cones", lum[exact][0], lum[exact][1]);
+  }
+  for (int device : {0, 1}) {
+    EXPECT_GT(lum[0][device], 0.1) << device;                    // the ground's bounce reaches it
+    EXPECT_LT(lum[1][device], 0.75 * lum[0][device]) << device;  // less of it with the rays
+  }
+  for (bool exact : {false, true}) EXPECT_NEAR(lum[exact][0], lum[exact][1], 0.02 * lum[exact][0]) << exact;
+}
+
 // A peak wider than 1° is seven rays, the axis and a ring whose second moment is the SG's: a lamp's
 // penumbra. A sun is one ray.
 TEST(PeakRays, OneForASunSevenForALamp) {
