@@ -430,6 +430,27 @@ TEST_F(TripleProductRendererGL, ShadeLanesGiveTheSamePictureAndCounts) {
   EXPECT_THROW(bad.Check(), odvr::Error);
 }
 
+// Mean luminance (channels summed) of the car pixels whose ray meets the plane y = plane_y in
+// front of the camera within x in [x0, x1], |z| <= z_half; at least 50 of them expected.
+double MeanOnPlane(const PinholeCamera& view, const RenderResult& r, double plane_y, double x0, double x1,
+                   double z_half) {
+  double sum = 0;
+  int n = 0;
+  for (int y = 0; y < view.height; ++y)
+    for (int x = 0; x < view.width; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * view.width + x;
+      const glm::dvec3 d = view.Ray(x + 0.5, y + 0.5);
+      const double t = (plane_y - view.position.y) / d.y;
+      if (r.car_alpha[i] < 0.5f || !(t > 0) || std::isinf(t)) continue;
+      const glm::dvec3 p = view.position + t * d;
+      if (p.x < x0 || p.x > x1 || std::abs(p.z) > z_half) continue;
+      sum += r.car.rgb[3 * i] + r.car.rgb[3 * i + 1] + r.car.rgb[3 * i + 2];
+      ++n;
+    }
+  EXPECT_GT(n, 50);
+  return sum / std::max(n, 1);
+}
+
 // RenderOptions::exact_peak_shadows: a floor under a roof 4 cm above it (about a voxel at 64³
 // over the scene), lit by a sun straight above, seen from inside the gap. The sun's cone starts 2
 // voxels off the floor, past the roof, and lets the sun through as if there were no roof; a ray
@@ -447,23 +468,8 @@ TEST_F(TripleProductRendererGL, ExactPeakShadowsSeeARoofNearerThanTheConesStart)
   sun.constant = glm::vec3(0.01f);
   sun.peaks.push_back({glm::dvec3(0, 1, 0), 3000.0, glm::vec3(3000.f)});
   const PinholeCamera view = PinholeCamera::LookAt({0.9, 0.45, 0.0}, {-0.5, 0.42, 0.0}, 6, 96, 48);
-  // Mean luminance of the floor's top under the roof (x in [−0.8, −0.2]), pixels the floor covers.
-  const auto under_roof = [&](const RenderResult& r) {
-    double sum = 0;
-    int n = 0;
-    for (int y = 0; y < view.height; ++y)
-      for (int x = 0; x < view.width; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y) * view.width + x;
-        const glm::dvec3 d = view.Ray(x + 0.5, y + 0.5);
-        if (r.car_alpha[i] < 0.5f || !(d.y < 0)) continue;
-        const glm::dvec3 p = view.position + ((0.42 - view.position.y) / d.y) * d;
-        if (p.x < -0.8 || p.x > -0.2 || std::abs(p.z) > 0.5) continue;
-        sum += r.car.rgb[3 * i] + r.car.rgb[3 * i + 1] + r.car.rgb[3 * i + 2];
-        ++n;
-      }
-    EXPECT_GT(n, 50);
-    return sum / std::max(n, 1);
-  };
+  // The floor's top under the roof (x in [−0.8, −0.2]).
+  const auto under_roof = [&](const RenderResult& r) { return MeanOnPlane(view, r, 0.42, -0.8, -0.2, 0.5); };
   double lum[2][2][2];  // [exact][roof][device: gpu, cpu]
   for (bool exact : {false, true})
     for (bool roof : {false, true}) {
@@ -505,23 +511,8 @@ TEST_F(TripleProductRendererGL, TheGroundsLitFractionTakesThePeaksRays) {
   sun.constant = glm::vec3(1.f);  // the ground's bounce: the lighting below the horizon
   sun.peaks.push_back({glm::dvec3(0, 1, 0), 3000.0, glm::vec3(3000.f)});
   const PinholeCamera view = PinholeCamera::LookAt({1.2, 0.1, 0.0}, {-0.5, 0.3, 0.0}, 40, 96, 48);
-  // Mean luminance of the board's underside over x in [−0.8, −0.2].
-  const auto underside = [&](const RenderResult& r) {
-    double sum = 0;
-    int n = 0;
-    for (int y = 0; y < view.height; ++y)
-      for (int x = 0; x < view.width; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y) * view.width + x;
-        const glm::dvec3 d = view.Ray(x + 0.5, y + 0.5);
-        if (r.car_alpha[i] < 0.5f || !(d.y > 0)) continue;
-        const glm::dvec3 p = view.position + ((0.30 - view.position.y) / d.y) * d;
-        if (p.x < -0.8 || p.x > -0.2 || std::abs(p.z) > 0.5) continue;
-        sum += r.car.rgb[3 * i] + r.car.rgb[3 * i + 1] + r.car.rgb[3 * i + 2];
-        ++n;
-      }
-    EXPECT_GT(n, 50);
-    return sum / std::max(n, 1);
-  };
+  // The board's underside over x in [−0.8, −0.2].
+  const auto underside = [&](const RenderResult& r) { return MeanOnPlane(view, r, 0.30, -0.8, -0.2, 0.5); };
   double lum[2][2];  // [exact][device: gpu, cpu]
   for (bool exact : {false, true}) {
     RenderOptions o;
