@@ -60,6 +60,7 @@ struct BenchRenderOptions {
   int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
   int shading_rate = render::RenderOptions{}.shading_rate;
   bool exact_peak_shadows = render::RenderOptions{}.exact_peak_shadows;
+  bool valid_reflection_normals = render::RenderOptions{}.valid_reflection_normals;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
 };
@@ -703,6 +704,7 @@ int RunBenchRender(BenchRenderOptions o) {
   base.ground_lit_map_texels = o.ground_lit_map;
   base.shading_rate = o.shading_rate;
   base.exact_peak_shadows = o.exact_peak_shadows;
+  base.valid_reflection_normals = o.valid_reflection_normals;
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   if (!o.depth_per_lobe) machine += "; --bin-depth";
@@ -712,6 +714,8 @@ int RunBenchRender(BenchRenderOptions o) {
     machine += "; --ground-lit-map " + std::to_string(o.ground_lit_map);
   if (o.exact_peak_shadows != render::RenderOptions{}.exact_peak_shadows)
     machine += o.exact_peak_shadows ? "; --exact-peak-shadows" : "; --peak-cone-shadows";
+  if (o.valid_reflection_normals != render::RenderOptions{}.valid_reflection_normals)
+    machine += o.valid_reflection_normals ? "; --valid-reflection-normals" : "; --raw-normals";
   if (o.shading_rate != render::RenderOptions{}.shading_rate)
     machine += "; --shading-rate " + std::to_string(o.shading_rate) + " (SG rows of one sample per pixel)";
   // One-at-a-time around the default: every level count, cone count and resolution once.
@@ -805,6 +809,9 @@ CommandFn AddBenchRender(CLI::App* sub) {
   sub->add_flag("--exact-peak-shadows,!--peak-cone-shadows", o->exact_peak_shadows,
                 "The SG rows' peaks shadowed by a ray against the triangles, or by their cones through the voxels "
                 "(RenderOptions::exact_peak_shadows)");
+  sub->add_flag("--valid-reflection-normals,!--raw-normals", o->valid_reflection_normals,
+                "Every row's G-buffer normals tilted where the mirrored view would dive below the triangle, or left "
+                "as interpolated (RenderOptions::valid_reflection_normals)");
   sub->add_option("--shading-rate", o->shading_rate,
                   "The SG rows' shading rate (RenderOptions::shading_rate; 2: a pixel per smooth 2x2 block)")
       ->check(CLI::IsMember({1, 2}));

@@ -40,6 +40,7 @@ struct RenderCliOptions {
   double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
   int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
   bool exact_peak_shadows = render::RenderOptions{}.exact_peak_shadows;
+  bool valid_reflection_normals = render::RenderOptions{}.valid_reflection_normals;
   int shading_rate = render::RenderOptions{}.shading_rate;
   std::string device = "gpu";
   bool json = false;
@@ -90,6 +91,7 @@ int RunRender(const RenderCliOptions& o) {
   options.overlap_cutoff = o.overlap_cutoff;
   options.ground_lit_map_texels = o.ground_lit_map;
   options.exact_peak_shadows = o.exact_peak_shadows;
+  options.valid_reflection_normals = o.valid_reflection_normals;
   options.shading_rate = o.shading_rate;
   options.read_layers = !o.composite_only;
   options.shade_lanes = o.shade_lanes;
@@ -228,6 +230,7 @@ int RunRender(const RenderCliOptions& o) {
           {"overlap_cutoff", o.overlap_cutoff},
           {"ground_lit_map_texels", o.ground_lit_map},
           {"exact_peak_shadows", o.exact_peak_shadows},
+          {"valid_reflection_normals", o.valid_reflection_normals},
           {"shading_rate", o.shading_rate},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
@@ -310,6 +313,9 @@ CommandFn AddRender(CLI::App* sub) {
       ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
   sub->add_flag("--exact-peak-shadows,!--peak-cone-shadows", o->exact_peak_shadows,
                 "Shadow each peak (a sun, a lamp) by a ray against the triangles, or by its cone through the voxels");
+  sub->add_flag("--valid-reflection-normals,!--raw-normals", o->valid_reflection_normals,
+                "Tilt a shading normal whose mirrored view would dive below its triangle, as Cycles does, or keep the "
+                "interpolated normal");
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");

@@ -37,6 +37,30 @@ vec2 texUv(int k) {
   return uv + uTexOffsetScale[k].xy;
 }
 
+// RenderOptions::valid_reflection_normals: the shading normal n tilted, in the plane of n and the
+// face's normal ng, just enough that the view direction wo mirrored about it leaves the face at a
+// height (its cosine to ng) of at least min(0.9 ng·wo, 0.01), as Cycles bends every closure's
+// normal: the mirror direction is lifted to that height, keeping its component across the plane,
+// and the new normal is its half-vector with wo.
+uniform int uValidReflectionNormals;
+vec3 validReflectionNormal(vec3 ng, vec3 wo, vec3 n) {
+  if (!(dot(ng, ng) > 0.5)) return n;
+  float height = min(0.9 * dot(ng, wo), 0.01);
+  vec3 r = 2.0 * dot(n, wo) * n - wo;
+  if (dot(ng, r) >= height) return n;
+  vec3 x = n - dot(n, ng) * ng;
+  float lx = length(x);
+  if (lx < 1e-6) return n;
+  x /= lx;
+  vec3 y = cross(ng, x);
+  float ry = -dot(wo, y);
+  float rx2 = 1.0 - height * height - ry * ry;
+  if (rx2 < 0.0) return ng;
+  vec3 lifted = (dot(r, x) >= 0.0 ? 1.0 : -1.0) * sqrt(rx2) * x + height * ng + ry * y;
+  vec3 h = wo + lifted;
+  return dot(h, h) > 1e-12 ? normalize(h) : ng;
+}
+
 void main() {
   vec4 base = uBaseColorFactor;
   if (uTexUse[0].x != 0) base *= texture(uBaseColorTex, texUv(0));
@@ -65,6 +89,8 @@ void main() {
   // Seen from behind (a double-sided panel, or a back face that won the depth test): shade the
   // side that faces the camera.
   if (dot(n, uCameraPosition - vPosition) < 0.0 && !gl_FrontFacing) n = -n;
+  if (uValidReflectionNormals != 0)
+    n = validReflectionNormal(normalize(face), normalize(uCameraPosition - vPosition), n);
   outPosition = vec4(vPosition, uMaterialId);
   outNormal = vec4(n, roughness);
   outBase = vec4(base.rgb, metallic);

@@ -1048,7 +1048,8 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   gl::Program& gp = im.gbuffer_program;
   gp.SetMat4("uClipFromWorld", glm::value_ptr(clip_from_world))
       .Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
-           static_cast<float>(camera.position.z));
+           static_cast<float>(camera.position.z))
+      .Set("uValidReflectionNormals", options_.valid_reflection_normals ? 1 : 0);
   for (auto& p : geometry ? im.primitives : no_primitives) {
     const auto& m = im.materials[static_cast<std::size_t>(p.material)];
     gp.Set("uMaterialId", static_cast<float>(p.material + 1))

@@ -119,6 +119,15 @@ struct RenderOptions {
   // takes the same rays from the ground, so the shadow the car sees in its bounce is the one drawn
   // on the catcher (studio_glossy 0.126 → 0.124). Off: each peak's cone, as the seed.
   bool exact_peak_shadows = true;
+  // The G-buffer's shading normal tilted toward the face's own, where the view mirrored about it
+  // would leave below the face, just enough that it leaves at a grazing height (render_gbuffer.frag),
+  // as Cycles bends the normal of every closure. At a car's outline smooth normals turn away from
+  // the camera faster than its triangles do: the view mirrored about them dives into the car, and
+  // the diffuse paints' retro-reflection and the glossy paints' Fresnel both read off there.
+  // Against the Cycles references (render_accuracy.md) the car's error fell on six of seven
+  // (street_a_f10 0.133 → 0.114, sunset_glossy 0.106 → 0.100) and rose on sky_diffuse
+  // (0.052 → 0.055). Off: the interpolated normal as it is.
+  bool valid_reflection_normals = true;
   bool ground = true;            // the shadow catcher
   double ground_half_size = 30;  // metres around the model's centre (Cycles' 60 m catcher)
   // Light from below the horizon stands for the ground's bounce (see above); the car's shadow

@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <numbers>
 
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
@@ -529,6 +530,44 @@ TEST_F(TripleProductRendererGL, TheGroundsLitFractionTakesThePeaksRays) {
     EXPECT_LT(lum[1][device], 0.75 * lum[0][device]) << device;  // less of it with the rays
   }
   for (bool exact : {false, true}) EXPECT_NEAR(lum[exact][0], lum[exact][1], 0.02 * lum[exact][0]) << exact;
+}
+
+// RenderOptions::valid_reflection_normals: a mirror slab whose top's vertex normals lean 30° away
+// from a camera 10° above it. The view mirrored about those normals dives 32° below the top, into
+// the slab; tilted toward the face just enough, it leaves at a grazing height and sees a light
+// 3° above the horizon beyond the slab. The GPU and the CPU shade the same G-buffer.
+TEST_F(TripleProductRendererGL, ValidReflectionNormalsKeepTheMirroredViewAboveTheFace) {
+  scene::GltfScene slab;
+  slab.materials = {Pbr("slab", {0.8f, 0.8f, 0.8f}, 0.f, 0.5f)};
+  scene::ScenePrimitive box = BoxPrimitive({-1.f, 0.48f, -1.f}, {1.f, 0.50f, 1.f}, 0);
+  const glm::vec3 leaning = glm::normalize(glm::vec3(0.5f, 0.866f, 0.f));            // 30° toward +x
+  for (int v = 12; v < 16; ++v) box.normals[static_cast<std::size_t>(v)] = leaning;  // the +y face
+  slab.primitives.push_back(box);
+  odvr::testing::Finish(&slab);
+  lighting::SgLighting light;
+  light.peaks.push_back({glm::normalize(glm::dvec3(1, 0.05, 0)), 200.0, glm::vec3(50.f)});
+  const double elevation = 10.0 * std::numbers::pi / 180;
+  const PinholeCamera view =
+      PinholeCamera::LookAt({-3.0, 0.5 + 3.0 * std::tan(elevation), 0.0}, {0.0, 0.5, 0.0}, 20, 96, 48);
+  double lum[2][2];  // [valid][device: gpu, cpu]
+  for (bool valid : {false, true}) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.ground = false;
+    o.valid_reflection_normals = valid;
+    o.materials = {ParseMaterialOverride("phong:1,1,1,10000")};
+    TripleProductRenderer r(slab, glm::dmat4(1.0), o);
+    r.SetLighting(light);
+    lum[valid][0] = MeanOnPlane(view, r.Render(view, ShadeDevice::kGpu), 0.50, -0.9, 0.9, 0.9);
+    lum[valid][1] = MeanOnPlane(view, r.Render(view, ShadeDevice::kCpu), 0.50, -0.9, 0.9, 0.9);
+    std::printf("%s normals: the slab's top %.4f (CPU %.4f)\n", valid ? "valid-reflection" : "interpolated",
+                lum[valid][0], lum[valid][1]);
+  }
+  for (int device : {0, 1}) {
+    EXPECT_GT(lum[1][device], 0.5) << device;                    // the light, mirrored
+    EXPECT_LT(lum[0][device], 0.02 * lum[1][device]) << device;  // the inside of the slab: nothing
+  }
+  for (bool valid : {false, true}) EXPECT_NEAR(lum[valid][0], lum[valid][1], 0.02 * lum[1][0] + 1e-4) << valid;
 }
 
 // A peak wider than 1° is seven rays, the axis and a ring whose second moment is the SG's: a lamp's
