@@ -174,7 +174,8 @@ struct RenderOptions {
   // chosen by `odvr bench render` (docs/benchmarks/render.md): the anisotropic split with the
   // cosine at each lobe's axis — against Cycles it cuts the glossy paints' relative L1 (studio
   // 0.73 → 0.41) for ~30 % more shade time; the cosine as an SG is worse (M at a broad lobe's
-  // axis carries 1/cos θ_i uncancelled: rough paints come out 1.5–1.9× too bright).
+  // axis carries 1/cos θ_i uncancelled: the rough paints read 0.065–0.091 against 0.055–0.066,
+  // and 1.3–1.9 before valid_reflection_normals kept the outline's normals off the grazing view).
   material::LobeOptions lobes{material::CosineTerm::kAtLobeAxis, material::WarpMode::kAnisotropicSplit};
   // > 0: the shading stage is instead the brute-force Monte-Carlo baseline (render_mc.comp, GPU
   // only, needs SetEnvironment): this many samples per pixel of the environment map itself,
