@@ -19,6 +19,8 @@ Variants (joined with '_' they combine, e.g. emu_direct):
                 what is behind the car; the catcher's bounce, shadowed by the car, stays)
   blackself     the car black to every ray but the camera's (its own reflections and bounce are
                 occlusion, as odvr's cones make them; the catcher's bounce stays): odvr's model
+  diffuseself   the car diffuse (base colour × (1 − metallic), Lambert) to every ray but the camera's:
+                its light on itself without the specular part, what a radiance per voxel would carry
   noshadowcar   the car casts no shadow (on itself or the catcher)
 Writes OUT/<image>_<variant>.exr (and masks) and OUT/variants.json.
 """
@@ -74,6 +76,7 @@ def camera_only(paint):
     mix = nt.nodes.new("ShaderNodeMixShader")
     mix.name = "CameraOnly"
     black = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    black.name = "CameraOnlyBlack"
     black.inputs["Color"].default_value = (0, 0, 0, 1)
     path = nt.nodes.new("ShaderNodeLightPath")
     nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
@@ -100,11 +103,18 @@ def configure(r, v):
             d.inputs["Color"].default_value = pb.inputs["Base Color"].default_value
             d.inputs["Roughness"].default_value = 0.0
             surface = d.outputs["BSDF"]
-        if "blackself" in v:
+        if "blackself" in v or "diffuseself" in v:
             mix = camera_only(paint)
             for link in list(mix.inputs[2].links):
                 nt.links.remove(link)
             nt.links.new(surface, mix.inputs[2])
+            others = nt.nodes["CameraOnlyBlack"]
+            if "diffuseself" in v:
+                base = pb.inputs["Base Color"].default_value
+                metallic = pb.inputs["Metallic"].default_value
+                others.inputs["Color"].default_value = (*(c * (1 - metallic) for c in base[:3]), 1)
+            else:
+                others.inputs["Color"].default_value = (0, 0, 0, 1)
             surface = mix.outputs["Shader"]
         nt.links.new(surface, out.inputs["Surface"])
 
