@@ -5,12 +5,14 @@
 // and an SG lobe of λ = 20, against the native map), so they read as that bench's columns.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
 #include <tuple>
 
 #include "benchmarks/bench_data.h"
+#include "engine/lighting/lighting_builder.h"
 #include "engine/lighting/peak_detector.h"
 #include "engine/lighting/reference_fits.h"
 #include "engine/lighting/residual_transform.h"
@@ -62,6 +64,56 @@ void BM_ResidualTransform(benchmark::State& state) {
 BENCHMARK(BM_ResidualTransform)
     ->ArgNames({"width", "levels"})
     ->ArgsProduct({{1024, 2048}, {3, 5}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// Args: frame width, HEALPix levels, peaks (0/1). The whole frame → model path that `odvr bench
+// light` times as its `sg` and `sg+peaks` rows (LightingBuilder::Build): the bad-pixel check, the
+// peak detector with its fused box pass, the transform.
+void BM_LightingBuilder(benchmark::State& state) {
+  const EnvMap* park = ParkOrSkip(state);
+  if (!park) return;
+  const int width = static_cast<int>(state.range(0)), levels = static_cast<int>(state.range(1));
+  const bool peaks = state.range(2) != 0;
+  const auto& frame = ParkFrame(*park, width);
+  struct Setup {
+    std::unique_ptr<lighting::LightingBuilder> builder;
+    lighting::LightingErrors errors;
+    int sgs = 0;
+  };
+  static std::map<std::tuple<int, int, bool>, Setup> setups;
+  Setup& setup = setups[{width, levels, peaks}];
+  if (!setup.builder) {
+    lighting::LightingOptions options;
+    options.transform.levels = levels;
+    options.transform.stop_threshold = 0;
+    options.detect_peaks = peaks;
+    setup.builder = std::make_unique<lighting::LightingBuilder>(options);
+    const lighting::SgLighting model = setup.builder->Build(frame);
+    setup.errors = park->evaluator->Evaluate(model);
+    setup.sgs = model.sg_count();
+  }
+  double peaks_ms = 0, prepare_ms = 0, transform_ms = 0;
+  for (auto _ : state) {
+    lighting::LightingReport report;
+    lighting::SgLighting model = setup.builder->Build(frame, &report);
+    benchmark::DoNotOptimize(model.levels.data());
+    peaks_ms += report.peaks_ms;
+    prepare_ms += report.transform.prepare_ms;
+    transform_ms += report.transform.total_ms;
+  }
+  // Where the time goes, as means over the iterations.
+  const double n = std::max<double>(1, static_cast<double>(state.iterations()));
+  state.counters["peaks_ms"] = peaks_ms / n;
+  state.counters["prepare_ms"] = prepare_ms / n;
+  state.counters["transform_ms"] = transform_ms / n;
+  state.counters["sgs"] = setup.sgs;
+  state.counters["diffuse"] = setup.errors.diffuse;
+  state.counters["glossy20"] = setup.errors.glossy20;
+}
+BENCHMARK(BM_LightingBuilder)
+    ->ArgNames({"width", "levels", "peaks"})
+    ->ArgsProduct({{1024, 2048}, {3, 5}, {0, 1}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
