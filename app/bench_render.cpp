@@ -61,6 +61,7 @@ struct BenchRenderOptions {
   int shading_rate = render::RenderOptions{}.shading_rate;
   bool exact_peak_shadows = render::RenderOptions{}.exact_peak_shadows;
   bool valid_reflection_normals = render::RenderOptions{}.valid_reflection_normals;
+  bool specular_bounce = render::RenderOptions{}.specular_bounce;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
 };
@@ -705,6 +706,7 @@ int RunBenchRender(BenchRenderOptions o) {
   base.shading_rate = o.shading_rate;
   base.exact_peak_shadows = o.exact_peak_shadows;
   base.valid_reflection_normals = o.valid_reflection_normals;
+  base.specular_bounce = o.specular_bounce;
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   if (!o.depth_per_lobe) machine += "; --bin-depth";
@@ -716,6 +718,8 @@ int RunBenchRender(BenchRenderOptions o) {
     machine += o.exact_peak_shadows ? "; --exact-peak-shadows" : "; --peak-cone-shadows";
   if (o.valid_reflection_normals != render::RenderOptions{}.valid_reflection_normals)
     machine += o.valid_reflection_normals ? "; --valid-reflection-normals" : "; --raw-normals";
+  if (o.specular_bounce != render::RenderOptions{}.specular_bounce)
+    machine += o.specular_bounce ? "; --specular-bounce" : "; --no-specular-bounce";
   if (o.shading_rate != render::RenderOptions{}.shading_rate)
     machine += "; --shading-rate " + std::to_string(o.shading_rate) + " (SG rows of one sample per pixel)";
   // One-at-a-time around the default: every level count, cone count and resolution once.
@@ -812,6 +816,9 @@ CommandFn AddBenchRender(CLI::App* sub) {
   sub->add_flag("--valid-reflection-normals,!--raw-normals", o->valid_reflection_normals,
                 "Every row's G-buffer normals tilted where the mirrored view would dive below the triangle, or left "
                 "as interpolated (RenderOptions::valid_reflection_normals)");
+  sub->add_flag("--specular-bounce,!--no-specular-bounce", o->specular_bounce,
+                "The SG rows with one bounce of the car's specular light on itself, found along the G-buffer, or "
+                "none (RenderOptions::specular_bounce)");
   sub->add_option("--shading-rate", o->shading_rate,
                   "The SG rows' shading rate (RenderOptions::shading_rate; 2: a pixel per smooth 2x2 block)")
       ->check(CLI::IsMember({1, 2}));

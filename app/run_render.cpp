@@ -41,6 +41,7 @@ struct RenderCliOptions {
   int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
   bool exact_peak_shadows = render::RenderOptions{}.exact_peak_shadows;
   bool valid_reflection_normals = render::RenderOptions{}.valid_reflection_normals;
+  bool specular_bounce = render::RenderOptions{}.specular_bounce;
   int shading_rate = render::RenderOptions{}.shading_rate;
   std::string device = "gpu";
   bool json = false;
@@ -92,6 +93,7 @@ int RunRender(const RenderCliOptions& o) {
   options.ground_lit_map_texels = o.ground_lit_map;
   options.exact_peak_shadows = o.exact_peak_shadows;
   options.valid_reflection_normals = o.valid_reflection_normals;
+  options.specular_bounce = o.specular_bounce;
   options.shading_rate = o.shading_rate;
   options.read_layers = !o.composite_only;
   options.shade_lanes = o.shade_lanes;
@@ -231,6 +233,7 @@ int RunRender(const RenderCliOptions& o) {
           {"ground_lit_map_texels", o.ground_lit_map},
           {"exact_peak_shadows", o.exact_peak_shadows},
           {"valid_reflection_normals", o.valid_reflection_normals},
+          {"specular_bounce", o.specular_bounce},
           {"shading_rate", o.shading_rate},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
@@ -316,6 +319,9 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_flag("--valid-reflection-normals,!--raw-normals", o->valid_reflection_normals,
                 "Tilt a shading normal whose mirrored view would dive below its triangle, as Cycles does, or keep the "
                 "interpolated normal");
+  sub->add_flag("--specular-bounce,!--no-specular-bounce", o->specular_bounce,
+                "One bounce of the car's specular light on itself, found along the G-buffer, or none "
+                "(RenderOptions::specular_bounce)");
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");

@@ -74,6 +74,7 @@ if [ "$quick" = stages ]; then
   render 720p --size 1280x720
   render 720p_composite --size 1280x720 --composite-only
   render 720p_cone_peaks --size 1280x720 --composite-only --peak-cone-shadows
+  render 720p_no_bounce --size 1280x720 --composite-only --no-specular-bounce
   render 720p_lanes2 --size 1280x720 --shade-lanes 2
   render 720p_lanes4 --size 1280x720 --shade-lanes 4
   render 720p_v64_l4 --size 1280x720 --voxels 64 --levels 4
@@ -104,6 +105,7 @@ elif [ "$quick" = shade ]; then
   render 720p_v64_l4 --size 1280x720 --composite-only --voxels 64 --levels 4
   render 720p_traced_ground --size 1280x720 --composite-only --ground-lit-map 0
   render 720p_rate2 --size 1280x720 --composite-only --shading-rate 2
+  render 720p_no_bounce --size 1280x720 --composite-only --no-specular-bounce
   render 720p_v64_l4_rate2 --size 1280x720 --composite-only --voxels 64 --levels 4 --shading-rate 2
   render 720p_v64_l4_traced_ground --size 1280x720 --composite-only --voxels 64 --levels 4 --ground-lit-map 0
   for v in "${VARIANTS:-$bundle/var}"/*/; do

@@ -85,6 +85,13 @@ uniform float uSurfaceOffset;  // metres along the normal where the car's cones 
 // gNormal) instead of its cone.
 uniform int uExactTriangles;  // 0: the peaks' cones
 uniform float uExactRayOffset;
+// RenderOptions::specular_bounce (0: off): the G-buffer march's step, length and surface thickness
+// (metres), and how many SRBFs (levels 0–1, by global index) light the surface it hits.
+uniform int uBounce;
+uniform float uBounceStep;
+uniform int uBounceSteps;
+uniform float uBounceThickness;
+uniform int uBounceSrbfs;
 #define BVH_BINDING 14  // 13: render_list_args.comp's
 #include "triangle_bvh.glsl"
 vec3 gSurface, gNormal;
@@ -515,6 +522,14 @@ void tracePeakCones(vec3 p, out float peak_visibility[kMaxPeaks], inout uvec4 co
   }
 }
 
+// RenderOptions::specular_bounce, per material term (TripleProductRenderer::kTermsPerMaterial):
+// Σ over its specular lobes of weight · ∫ lobe · (1 − visible share), and their axes weighted by
+// that (luminance): the light the term's cones lose to the car, and where it comes from.
+const int kBounceTerms = 2;
+int gTerm;
+vec3 gBounceWeight[kBounceTerms];
+vec3 gBounceAxis[kBounceTerms];
+
 // The pixel being shaded, for emitLobe.
 vec3 gOrigin;
 vec3 gRadiance;
@@ -557,12 +572,102 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
     gCount.z += uint(gSet.count);
   }
   gRadiance += weight * shaded;
+  if (uBounce != 0 && !cosine && tail_share <= 0.0 && !gSet.all_visible) {
+    SgProduct q;
+    q.axis = axis;
+    q.lambda = lambda;
+    q.log_amplitude = 0.0;
+    vec3 lost = weight * (sgIntegral(lambda) * (1.0 - visibleShare(q, gSet)));
+    gBounceWeight[gTerm] += lost;
+    gBounceAxis[gTerm] += axis * dot(lost, vec3(0.2126, 0.7152, 0.0722));
+    gCount.z += uint(gSet.count);
+  }
   if (uPeakCones != 0)
     for (int k = 0; k < kMaxPeaks; ++k)
       if (k < uPeakCount)
         gPeakSum[k] += weight * peakIntegral(axis, lambda, cosine, peaks[k].axis_lambda.xyz, peaks[k].axis_lambda.w);
   gCount.x += 1u;
   gCount.y += uint(gSet.count);
+}
+
+// The first car surface the G-buffer shows behind the ray o + t d (t = uBounceStep, 2 uBounceStep,
+// …), by less than uBounceThickness along the camera's axis; false when the ray leaves the picture
+// or the march ends first.
+bool bounceHit(vec3 o, vec3 d, out ivec2 hit) {
+  hit = ivec2(0);
+  mat3 camera_from_world = transpose(uWorldFromCamera);
+  for (int s = 1; s <= uBounceSteps; ++s) {
+    vec3 c = camera_from_world * (o + (uBounceStep * float(s)) * d - uCameraPosition);
+    if (c.z <= 1e-4) return false;
+    ivec2 q = ivec2(floor(c.xy / c.z * uFocal + 0.5 * vec2(uSize)));
+    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, uSize))) return false;
+    vec4 gp = imageLoad(uGPosition, q);
+    if (gp.w < 0.5) continue;
+    float depth = dot(uWorldFromCamera[2], gp.xyz - uCameraPosition);
+    if (c.z > depth && c.z < depth + uBounceThickness) {
+      hit = q;
+      return true;
+    }
+  }
+  return false;
+}
+
+// The radiance the car surface at G-buffer pixel q sends along wo_in: its specular lobes under
+// the constant, the SRBFs below uBounceSrbfs and the peaks (shadowed from there as a pixel's own:
+// rays or cones), plus what it emits.
+vec3 bounceRadiance(ivec2 q, vec3 wo_in) {
+  vec4 gp = imageLoad(uGPosition, q);
+  int material = int(gp.w + 0.5) - 1;
+  if (material < 0 || material >= uMaterialCount) return vec3(0.0);
+  vec4 gn = imageLoad(uGNormal, q);
+  vec4 gb = imageLoad(uGBase, q);
+  vec3 n = normalize(gn.xyz);
+  vec3 emitted = terms[materialRow(material) + uTermsPerMaterial].color.rgb;
+  if (dot(n, wo_in) <= 0.0) return emitted;
+  vec3 wo = bendView(n, wo_in);
+  float visible[kMaxPeaks];
+  for (int k = 0; k < kMaxPeaks; ++k) {
+    visible[k] = 1.0;
+    if (k >= uPeakCount) continue;
+    visible[k] = uExactTriangles > 0 ? peakRaysVisibility(gp.xyz + uExactRayOffset * n, k)
+                                     : traceCone(gp.xyz + uSurfaceOffset * n, peaks[k].axis_lambda.xyz,
+                                                 min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle));
+  }
+  gLinear = vec3(0.0);  // a specular lobe's integrals have no linear factor
+  vec3 radiance = vec3(0.0);
+  for (int k = 0; k < uTermsPerMaterial; ++k) {
+    MaterialTerm term = terms[materialRow(material) + k];
+    TermLobes t = describeTerm(term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wo);
+    for (int i = 0; i < t.count; ++i) {
+      vec3 axis, weight;
+      float lambda;
+      bool cosine;
+      if (!termLobe(t, i, n, wo, axis, lambda, weight, cosine) || cosine) continue;
+      vec3 light = uConstant * peakIntegral(axis, lambda, false, vec3(0, 1, 0), 0.0);
+      for (int j = 0; j < uBounceSrbfs; ++j)
+        if (srbfs[j].amplitude.xyz != vec3(0.0))
+          light += srbfs[j].amplitude.xyz *
+                   peakIntegral(axis, lambda, false, srbfs[j].axis_lambda.xyz, srbfs[j].axis_lambda.w);
+      for (int j = 0; j < uPeakCount; ++j)
+        light += peaks[j].amplitude.xyz * (j < kMaxPeaks ? visible[j] : 1.0) *
+                 peakIntegral(axis, lambda, false, peaks[j].axis_lambda.xyz, peaks[j].axis_lambda.w);
+      radiance += weight * light;
+    }
+  }
+  return max(radiance, vec3(0.0)) + emitted;
+}
+
+// Σ over the terms whose specular lobes lost light to the car: that loss's weight times the
+// radiance of the surface the G-buffer shows along their mean direction.
+vec3 specularBounce() {
+  vec3 sum = vec3(0.0);
+  for (int t = 0; t < kBounceTerms; ++t) {
+    if (length(gBounceAxis[t]) <= 0.0) continue;
+    vec3 d = normalize(gBounceAxis[t]);
+    ivec2 q;
+    if (bounceHit(gSurface + uExactRayOffset * gNormal, d, q)) sum += gBounceWeight[t] * bounceRadiance(q, -d);
+  }
+  return sum;
 }
 
 // uGroundTablePass: invocation i < kMaxCones shades the ground's lobe as if cone i alone were
@@ -626,6 +731,10 @@ void main() {
   gCosineNormal = vec3(0.0, 1.0, 0.0);
   gRadiance = vec3(0.0);
   for (int k = 0; k < kMaxPeaks; ++k) gPeakSum[k] = vec3(0.0);
+  for (int t = 0; t < kBounceTerms; ++t) {
+    gBounceWeight[t] = vec3(0.0);
+    gBounceAxis[t] = vec3(0.0);
+  }
   if (uGroundTablePass == 1) {  // one group, all of it here: no barrier below is reached
     buildGroundTable();
     return;
@@ -657,6 +766,7 @@ void main() {
       for (int k = 0; k < uTermsPerMaterial; ++k) {
         MaterialTerm term = terms[materialRow(material) + k];
         TermLobes t = describeTerm(term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wo);
+        gTerm = min(k, kBounceTerms - 1);
         for (int i = 0; i < t.count; ++i) {
           vec3 axis, weight;
           float lambda;
@@ -718,20 +828,40 @@ void main() {
   for (int c = 0; c < 4; ++c) sCount[4 * (slot + lane) + c] = gCount[c];
   memoryBarrierShared();
   barrier();
-  if (lane != 0) return;
-  for (int l = 1; l < SHADE_LANES; ++l) {
-    for (int c = 0; c < 3; ++c) {
-      gRadiance[c] += sRadiance[3 * (slot + l) + c];
-      for (int k = 0; k < kMaxPeaks; ++k) gPeakSum[k][c] += sPeakSum[(3 * kMaxPeaks) * (slot + l) + 3 * k + c];
+  if (lane == 0)
+    for (int l = 1; l < SHADE_LANES; ++l) {
+      for (int c = 0; c < 3; ++c) {
+        gRadiance[c] += sRadiance[3 * (slot + l) + c];
+        for (int k = 0; k < kMaxPeaks; ++k) gPeakSum[k][c] += sPeakSum[(3 * kMaxPeaks) * (slot + l) + 3 * k + c];
+      }
+      for (int c = 0; c < 4; ++c) gCount[c] += sCount[4 * (slot + l) + c];
     }
-    for (int c = 0; c < 4; ++c) gCount[c] += sCount[4 * (slot + l) + c];
+  if (uBounce != 0) {
+    // The bounce's sums in the peaks' slots, once lane 0 has read those (6 of their 3 kMaxPeaks).
+    barrier();
+    for (int t = 0; t < kBounceTerms; ++t)
+      for (int c = 0; c < 3; ++c) {
+        sPeakSum[(3 * kMaxPeaks) * (slot + lane) + 6 * t + c] = gBounceWeight[t][c];
+        sPeakSum[(3 * kMaxPeaks) * (slot + lane) + 6 * t + 3 + c] = gBounceAxis[t][c];
+      }
+    memoryBarrierShared();
+    barrier();
+    if (lane == 0)
+      for (int l = 1; l < SHADE_LANES; ++l)
+        for (int t = 0; t < kBounceTerms; ++t)
+          for (int c = 0; c < 3; ++c) {
+            gBounceWeight[t][c] += sPeakSum[(3 * kMaxPeaks) * (slot + l) + 6 * t + c];
+            gBounceAxis[t][c] += sPeakSum[(3 * kMaxPeaks) * (slot + l) + 6 * t + 3 + c];
+          }
   }
+  if (lane != 0) return;
 #endif
   if (!shading) return;
   if (material >= 0 && material < uMaterialCount) {
     if (uPeakCones != 0)
       for (int k = 0; k < kMaxPeaks; ++k)
         if (k < uPeakCount) gRadiance += max(peaks[k].amplitude.xyz * gPeakSum[k], vec3(0.0)) * gPeakVisibility[k];
+    if (uBounce != 0) gRadiance += specularBounce();
     car = vec4(gRadiance + terms[materialRow(material) + uTermsPerMaterial].color.rgb, 1.0);
   }
   imageStore(uCarLayer, pixel, car);

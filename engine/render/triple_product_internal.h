@@ -77,6 +77,16 @@ struct PreparedLighting {
   }
 };
 
+// RenderOptions::specular_bounce: the surface a specular lobe sees is lit by the constant, the
+// peaks and the SRBFs of this many levels (0–1: 60 SGs over the whole sphere, where the bins give
+// a pixel's own lobes hundreds).
+inline constexpr int kBounceLevels = 2;
+// Bounce sums are kept per material term (render_shade.comp's kBounceTerms).
+inline constexpr int kBounceTerms = TripleProductRenderer::kTermsPerMaterial;
+inline int BounceSrbfCount(const PreparedLighting& l) {
+  return std::min(lighting::GlobalSrbfIndex(kBounceLevels, 0), static_cast<int>(l.srbfs.size()));
+}
+
 // The ground's lit fraction at q (y = 0) for the bounce the car sees there: the up cone for the
 // broad light and each traced peak's visibility, weighted by their shares of the ground's
 // irradiance. `trace(origin, axis, half_angle)` is the cone tracer; `peak(q, k, half_angle)` peak

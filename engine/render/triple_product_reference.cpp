@@ -250,6 +250,101 @@ std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surfac
   return v;
 }
 
+// The lobes of a pixel's material: the override's terms, or the glTF metallic-roughness the
+// G-buffer holds at `idx`. `term_of` gets each lobe's term; `on_term(brdf, own lobes)` is called
+// after each term's lobes are appended.
+template <class OnTerm>
+void AppendMaterialLobes(const ReferenceInputs& in, std::size_t idx, int material, const material::ShadingFrame& frame,
+                         const glm::dvec3& wo, std::vector<material::Lobe>* lobes, std::vector<int>* term_of,
+                         const OnTerm& on_term) {
+  const GBuffer& g = *in.gbuffer;
+  const auto add = [&](const material::Brdf& brdf, int term) {
+    const std::size_t first = lobes->size();
+    material::AppendLobes(brdf, frame, wo, lobes, in.options.lobes);
+    term_of->resize(lobes->size(), term);
+    on_term(brdf, std::span<const material::Lobe>(lobes->data() + first, lobes->size() - first));
+  };
+  const auto& terms = (*in.materials)[static_cast<std::size_t>(material)];
+  if (terms.empty()) {
+    add(material::MetallicRoughness{glm::dvec3(g.base[4 * idx], g.base[4 * idx + 1], g.base[4 * idx + 2]),
+                                    g.base[4 * idx + 3], g.normal[4 * idx + 3]},
+        0);
+  } else {
+    for (std::size_t t = 0; t < terms.size(); ++t) add(terms[t], static_cast<int>(t));
+  }
+}
+
+// render_shade.comp's bounceHit: the first car surface the G-buffer shows behind o + t d, t a
+// multiple of the step, by less than the thickness along the camera's axis.
+bool BounceHit(const ReferenceInputs& in, const glm::dvec3& o, const glm::dvec3& d, std::size_t* hit) {
+  const GBuffer& g = *in.gbuffer;
+  const double voxel = in.grid->spec().voxel_size;
+  const double step = in.options.bounce_step_voxels * voxel, thickness = in.options.bounce_thickness_voxels * voxel;
+  const glm::dmat3 camera_from_world = glm::transpose(in.camera.world_from_camera);
+  const double focal = in.camera.focal_px();
+  for (int s = 1; s <= in.options.bounce_steps; ++s) {
+    const glm::dvec3 c = camera_from_world * (o + (step * s) * d - in.camera.position);
+    if (c.z <= 1e-4) return false;
+    const double x = std::floor(c.x / c.z * focal + 0.5 * g.width), y = std::floor(c.y / c.z * focal + 0.5 * g.height);
+    if (x < 0 || y < 0 || x >= g.width || y >= g.height) return false;
+    const std::size_t q = static_cast<std::size_t>(y) * static_cast<std::size_t>(g.width) + static_cast<std::size_t>(x);
+    if (g.position[4 * q + 3] < 0.5f) continue;
+    const glm::dvec3 surface(g.position[4 * q], g.position[4 * q + 1], g.position[4 * q + 2]);
+    const double depth = glm::dot(in.camera.world_from_camera[2], surface - in.camera.position);
+    if (c.z > depth && c.z < depth + thickness) {
+      *hit = q;
+      return true;
+    }
+  }
+  return false;
+}
+
+// render_shade.comp's bounceRadiance: what the car surface at G-buffer sample q sends along
+// wo_in, from its specular lobes under the constant, the coarse SRBFs and the peaks (shadowed from
+// there), plus what it emits.
+glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::dvec3& wo_in) {
+  const GBuffer& g = *in.gbuffer;
+  const int material = static_cast<int>(std::lround(g.position[4 * q + 3])) - 1;
+  if (material < 0 || material >= static_cast<int>(in.materials->size())) return glm::dvec3(0);
+  const glm::dvec3 emitted = in.emission && static_cast<std::size_t>(material) < in.emission->size()
+                                 ? glm::dvec3((*in.emission)[static_cast<std::size_t>(material)])
+                                 : glm::dvec3(0);
+  const glm::dvec3 x(g.position[4 * q], g.position[4 * q + 1], g.position[4 * q + 2]);
+  const glm::dvec3 n = glm::normalize(glm::dvec3(g.normal[4 * q], g.normal[4 * q + 1], g.normal[4 * q + 2]));
+  if (glm::dot(n, wo_in) <= 0) return emitted;
+  const PreparedLighting& L = *in.lighting;
+  std::vector<double> visible(std::min<std::size_t>(L.peaks.size(), TripleProductRenderer::kMaxPeakCones), 1.0);
+  for (std::size_t k = 0; k < visible.size(); ++k) {
+    if (in.bvh) {
+      visible[k] = PeakRaysVisibility(x, n, L.peaks[k], *in.bvh);
+    } else if (in.grid) {
+      const double a = std::min(HalfValueAngle(L.peaks[k].lambda), visibility::kMaxConeHalfAngle);
+      const glm::dvec3 o = x + n * (in.options.surface_offset_voxels * in.grid->spec().voxel_size);
+      visible[k] =
+          in.grid->TraceCone({glm::vec3(o), glm::vec3(L.peaks[k].axis), static_cast<float>(a)}, in.options.trace);
+    }
+  }
+  std::vector<material::Lobe> lobes;
+  std::vector<int> term_of;
+  AppendMaterialLobes(in, q, material, material::ShadingFrame::FromNormal(n), wo_in, &lobes, &term_of,
+                      [](const material::Brdf&, std::span<const material::Lobe>) {});
+  const int srbfs = BounceSrbfCount(L);
+  glm::dvec3 radiance(0);
+  for (const material::Lobe& lobe : lobes) {
+    if (lobe.clamped_cosine) continue;
+    glm::dvec3 light = glm::dvec3(L.constant) * FullIntegral(lobe, Sg{{0, 1, 0}, 0.0, 1.0});
+    for (int j = 0; j < srbfs; ++j) {
+      const lighting::RgbSg& s = L.srbfs[static_cast<std::size_t>(j)];
+      if (s.amplitude != glm::vec3(0)) light += glm::dvec3(s.amplitude) * FullIntegral(lobe, Sg{s.axis, s.lambda, 1.0});
+    }
+    for (std::size_t k = 0; k < L.peaks.size(); ++k)
+      light += glm::dvec3(L.peaks[k].amplitude) * (k < visible.size() ? visible[k] : 1.0) *
+               FullIntegral(lobe, Sg{L.peaks[k].axis, L.peaks[k].lambda, 1.0});
+    radiance += lobe.weight * lobe.sg.amplitude * light;
+  }
+  return glm::max(radiance, glm::dvec3(0)) + emitted;
+}
+
 }  // namespace
 
 std::vector<glm::dvec3> PeakRayDirections(const glm::dvec3& axis, double lambda) {
@@ -283,10 +378,12 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
   result->ground_mask.assign(static_cast<std::size_t>(w) * h, 0.f);
   counts->assign(static_cast<std::size_t>(w) * h, {});
   const int material_count = static_cast<int>(in.materials->size());
+  const bool bounce = in.options.specular_bounce && in.grid;
   pool.ParallelFor(
       static_cast<long>(w) * h,
       [&](long begin, long end) {
         std::vector<material::Lobe> lobes;
+        std::vector<int> lobe_term;
         for (long i = begin; i < end; ++i) {
           const auto idx = static_cast<std::size_t>(i);
           const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
@@ -299,31 +396,28 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
             const material::ShadingFrame frame = material::ShadingFrame::FromNormal(n);
             const glm::dvec3 wo = glm::normalize(in.camera.position - p);
             lobes.clear();
-            const auto& terms = (*in.materials)[static_cast<std::size_t>(material)];
+            lobe_term.clear();
             const glm::dvec3 origin =
                 p + n * (in.grid ? in.options.surface_offset_voxels * in.grid->spec().voxel_size : 0.0);
             const std::vector<double> peak_v = TracePeakCones(origin, p, n, in, &count);
             // Per traced peak: Σ over the lobes of ∫ lobe × peak, plus what the GGX lobes leave
             // out under it (material::GgxResidualUnderSgLight).
             std::vector<glm::dvec3> peak_sum(in.options.peak_cones ? peak_v.size() : 0, glm::dvec3(0));
-            const auto add_term = [&](const material::Brdf& brdf) {
-              const std::size_t first = lobes.size();
-              material::AppendLobes(brdf, frame, wo, &lobes, in.options.lobes);
-              const std::span<const material::Lobe> own(lobes.data() + first, lobes.size() - first);
-              for (std::size_t k = 0; k < peak_sum.size(); ++k) {
-                const auto& pk = in.lighting->peaks[k];
-                peak_sum[k] += material::GgxResidualUnderSgLight(brdf, frame, wo, own, Sg{pk.axis, pk.lambda, 1.0});
-              }
-            };
-            if (terms.empty()) {
-              add_term(
-                  material::MetallicRoughness{glm::dvec3(g.base[4 * idx], g.base[4 * idx + 1], g.base[4 * idx + 2]),
-                                              g.base[4 * idx + 3], g.normal[4 * idx + 3]});
-            } else {
-              for (const auto& brdf : terms) add_term(brdf);
-            }
+            AppendMaterialLobes(
+                in, idx, material, frame, wo, &lobes, &lobe_term,
+                [&](const material::Brdf& brdf, std::span<const material::Lobe> own) {
+                  for (std::size_t k = 0; k < peak_sum.size(); ++k) {
+                    const auto& pk = in.lighting->peaks[k];
+                    peak_sum[k] += material::GgxResidualUnderSgLight(brdf, frame, wo, own, Sg{pk.axis, pk.lambda, 1.0});
+                  }
+                });
+            // RenderOptions::specular_bounce: per term, the light its specular lobes lose to the
+            // car and the luminance-weighted mean of their axes (render_shade.comp's emitLobe).
+            glm::dvec3 bounce_weight[kBounceTerms] = {glm::dvec3(0), glm::dvec3(0)};
+            glm::dvec3 bounce_axis[kBounceTerms] = {glm::dvec3(0), glm::dvec3(0)};
             glm::dvec3 radiance(0);
-            for (const auto& lobe : lobes) {
+            for (std::size_t li = 0; li < lobes.size(); ++li) {
+              const material::Lobe& lobe = lobes[li];
               const Sg unit{lobe.sg.axis, lobe.sg.lambda, 1.0};
               const bool cosine = lobe.clamped_cosine;
               const ConeSet set = TraceLobeCones(unit, cosine, origin, in);
@@ -341,6 +435,13 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
               // A clamped-cosine lobe's weight is the whole of it; an SG lobe's amplitude is apart.
               const glm::dvec3 weight = lobe.weight * (cosine ? 1.0 : lobe.sg.amplitude);
               radiance += weight * shaded;
+              if (bounce && !cosine && lobe.tail_share <= 0 && !set.all_visible) {
+                const glm::dvec3 lost = weight * (lighting::Integral(unit) * (1.0 - VisibleShare(unit, set)));
+                const int t = std::min(lobe_term[li], kBounceTerms - 1);
+                bounce_weight[t] += lost;
+                bounce_axis[t] += lobe.sg.axis * glm::dot(lost, glm::dvec3(0.2126, 0.7152, 0.0722));
+                count.triples += static_cast<unsigned>(set.cones.size());
+              }
               for (std::size_t k = 0; k < peak_sum.size(); ++k)
                 peak_sum[k] +=
                     weight * FullIntegral(lobe, Sg{in.lighting->peaks[k].axis, in.lighting->peaks[k].lambda, 1.0});
@@ -352,6 +453,13 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
             for (std::size_t k = 0; k < peak_sum.size(); ++k)
               radiance +=
                   glm::max(glm::dvec3(in.lighting->peaks[k].amplitude) * peak_sum[k], glm::dvec3(0)) * peak_v[k];
+            for (int t = 0; t < kBounceTerms; ++t) {
+              if (!(glm::length(bounce_axis[t]) > 0)) continue;
+              const glm::dvec3 d = glm::normalize(bounce_axis[t]);
+              std::size_t hit = 0;
+              if (BounceHit(in, p + static_cast<double>(kExactRayOffset) * n, d, &hit))
+                radiance += bounce_weight[t] * BounceRadiance(in, hit, -d);
+            }
             if (in.emission && static_cast<std::size_t>(material) < in.emission->size())
               radiance += glm::dvec3((*in.emission)[static_cast<std::size_t>(material)]);
             for (int c = 0; c < 3; ++c) result->car.rgb[3 * idx + c] = static_cast<float>(radiance[c]);

@@ -476,6 +476,11 @@ void RenderOptions::Check() const {
   if (!(ground_half_size > 0)) throw Error("render ground_half_size", "must be positive");
   if (!(surface_offset_voxels >= 0 && surface_offset_voxels <= 8))
     throw Error("render surface_offset_voxels", "must be in [0, 8]");
+  if (!(bounce_step_voxels > 0 && bounce_step_voxels <= 16))
+    throw Error("render bounce_step_voxels", "must be in (0, 16]");
+  if (bounce_steps < 1 || bounce_steps > 1024) throw Error("render bounce_steps", "must be in 1..1024");
+  if (!(bounce_thickness_voxels > 0 && bounce_thickness_voxels <= 64))
+    throw Error("render bounce_thickness_voxels", "must be in (0, 64]");
   if (!(overlap_min_retention > 0 && overlap_min_retention < 1))
     throw Error("render overlap_min_retention", "must be in (0, 1)");
   if (!(overlap_cutoff > 0 && overlap_cutoff < 1)) throw Error("render overlap_cutoff", "must be in (0, 1)");
@@ -1121,6 +1126,11 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         .Set("uSurfaceOffset", static_cast<float>(options_.surface_offset_voxels * im.spec.voxel_size))
         .Set("uExactTriangles", options_.exact_peak_shadows && geometry ? im.bvh_triangle_count : 0)
         .Set("uExactRayOffset", detail::kExactRayOffset)
+        .Set("uBounce", options_.specular_bounce && geometry ? 1 : 0)
+        .Set("uBounceStep", static_cast<float>(options_.bounce_step_voxels * im.spec.voxel_size))
+        .Set("uBounceSteps", options_.bounce_steps)
+        .Set("uBounceThickness", static_cast<float>(options_.bounce_thickness_voxels * im.spec.voxel_size))
+        .Set("uBounceSrbfs", detail::BounceSrbfCount(im.lighting))
         .Set("uGround", options_.ground ? 1 : 0)
         .Set("uWarpSplit", options_.lobes.warp == material::WarpMode::kAnisotropicSplit ? 1 : 0)
         .Set("uCosineAsSg", options_.lobes.cosine == material::CosineTerm::kAsSg ? 1 : 0)

@@ -128,8 +128,22 @@ struct RenderOptions {
   // (street_a_f10 0.133 → 0.114, sunset_glossy 0.106 → 0.100) and rose on sky_diffuse
   // (0.052 → 0.055). Off: the interpolated normal as it is.
   bool valid_reflection_normals = true;
-  bool ground = true;            // the shadow catcher
-  double ground_half_size = 30;  // metres around the model's centre (Cycles' 60 m catcher)
+  // One bounce of the car's specular light on itself, found in screen space: where a term's
+  // specular lobes are occluded (their cones meet the car), the G-buffer is marched along their
+  // occlusion-weighted mean direction, and a surface it passes behind is shaded for the view back
+  // along it — its specular lobes only, under the peaks (each shadowed from there as the pixel's
+  // own), the constant and the lighting's levels 0–1 — and seen through the occluded part of the
+  // lobes. Cycles with one bounce (max bounces 1) is within its noise of the references, and without
+  // the car's light on itself the glossy paints read 3.4–4.2 % dark; the diffuse bounce gives back
+  // little of it (render_accuracy.md, "A radiance per voxel would not close the glossy paints'
+  // gap"), so the hit's diffuse lobe is left out. What the camera does not see (a recess's inner
+  // walls) reflects nothing. Against the Cycles references: see render_accuracy.md.
+  bool specular_bounce = true;
+  double bounce_step_voxels = 1.0;       // the march's step, in level-0 voxels
+  int bounce_steps = 64;                 // and its length in steps
+  double bounce_thickness_voxels = 1.5;  // a sample this far behind the G-buffer's surface hits it
+  bool ground = true;                    // the shadow catcher
+  double ground_half_size = 30;          // metres around the model's centre (Cycles' 60 m catcher)
   // Light from below the horizon stands for the ground's bounce (see above); the car's shadow
   // darkens that bounce. Per lobe, the cones whose axes meet the ground within the catcher take
   // off the ground's radiance (the lighting's cosine-weighted mean below the horizon) times their

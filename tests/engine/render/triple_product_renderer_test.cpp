@@ -570,6 +570,52 @@ TEST_F(TripleProductRendererGL, ValidReflectionNormalsKeepTheMirroredViewAboveTh
   for (bool valid : {false, true}) EXPECT_NEAR(lum[valid][0], lum[valid][1], 0.02 * lum[1][0] + 1e-4) << valid;
 }
 
+// RenderOptions::specular_bounce: a mirror floor (Phong n = 10 000, reflectance 0.5) in front of
+// an emissive wall, in the dark. Where the floor mirrors the wall its cone is blocked, and without
+// the bounce the floor reads black; with it, the floor's lost light is the wall's radiance, which
+// the G-buffer march finds: the same floor under an open sky of that radiance reads the same. GPU
+// and CPU alike.
+TEST_F(TripleProductRendererGL, SpecularBounceShowsAnEmissiveWallInAMirrorFloor) {
+  const float radiance = 3.f;
+  const auto scene = [&](bool wall) {
+    scene::GltfScene s;
+    s.materials = {Pbr("floor", {0.5f, 0.5f, 0.5f}, 0.f, 0.5f), Pbr("wall", {0.f, 0.f, 0.f}, 0.f, 1.f)};
+    s.materials[1].emissive_factor = glm::vec3(1.f);
+    s.materials[1].emissive_strength = radiance;
+    s.primitives.push_back(BoxPrimitive({-2.f, -0.05f, -1.2f}, {2.f, 0.f, 2.f}, 0));
+    if (wall) s.primitives.push_back(BoxPrimitive({-2.f, 0.f, -1.2f}, {2.f, 1.5f, -1.f}, 1));
+    odvr::testing::Finish(&s);
+    return s;
+  };
+  const PinholeCamera view = PinholeCamera::LookAt({0.0, 1.0, 3.0}, {0.0, 0.3, -0.5}, 50, 96, 64);
+  const auto floor_mean = [&](bool wall, bool bounce, ShadeDevice device, int lanes = 1) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.ground = false;
+    o.specular_bounce = bounce;
+    o.shade_lanes = lanes;
+    o.materials = {ParseMaterialOverride("floor=phong:0.5,0.5,0.5,10000")};
+    TripleProductRenderer r(scene(wall), glm::dmat4(1.0), o);
+    lighting::SgLighting light;
+    if (!wall) light.constant = glm::vec3(radiance);  // the open sky the wall stands for
+    r.SetLighting(light);
+    return MeanOnPlane(view, r.Render(view, device), 0.0, -1.0, 1.0, 0.4);
+  };
+  for (ShadeDevice device : {ShadeDevice::kGpu, ShadeDevice::kCpu}) {
+    const double sky = floor_mean(false, true, device), bounce = floor_mean(true, true, device),
+                 none = floor_mean(true, false, device);
+    std::printf("%s: the floor mirroring an open sky %.4f, the wall with the bounce %.4f, without %.4f\n",
+                device == ShadeDevice::kGpu ? "GPU" : "CPU", sky, bounce, none);
+    EXPECT_GT(sky, 0.3 * radiance);  // three channels of 0.5 × 3 × the cosine at the mirror (~0.3 here)
+    EXPECT_NEAR(bounce / sky, 1.0, 0.1);
+    EXPECT_LT(none, 0.02 * sky);
+    // The bounce's sums of four lanes added up (render_shade.comp's second exchange).
+    if (device == ShadeDevice::kGpu) {
+      EXPECT_NEAR(floor_mean(true, true, device, 4), bounce, 1e-5 * bounce);
+    }
+  }
+}
+
 // A peak wider than 1° is seven rays, the axis and a ring whose second moment is the SG's: a lamp's
 // penumbra. A sun is one ray.
 TEST(PeakRays, OneForASunSevenForALamp) {
@@ -971,6 +1017,8 @@ TEST_F(TripleProductRendererGL, EmissiveMaterialAddsItsRadianceInEveryShader) {
   RenderOptions o;
   o.voxel_resolution = 64;
   o.ground = false;
+  // The box's gloss would show the lit lamp (the bounce's own test: SpecularBounceShowsAnEmissive…).
+  o.specular_bounce = false;
   const auto expect_emission = [&](const RenderResult& r, const char* what, const RenderResult* base) {
     int sphere_px = 0, box_px = 0;
     double worst = 0;
