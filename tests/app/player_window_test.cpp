@@ -63,7 +63,11 @@ class ScriptedWindow {
     s << "xdotool key Escape\nwait $P\necho \"player exit $?\"\n";
     const fs::path script = dir_ / "drive.sh";
     std::ofstream(script) << s.str();
-    const std::string cmd = "xvfb-run -a -s '-screen 0 1280x720x24' bash '" + script.string() + "' 2>&1";
+    // Key auto-repeat pushed 30 s out: on a loaded machine the server can see a key held past its
+    // 660 ms delay between xdotool's press and release. The likeliest reading of one CI run
+    // (stop 33, the machine shared with a bench) where '.' '.' ',' stepped to frame + 2, not + 1;
+    // four runs beside three benches here did not repeat it.
+    const std::string cmd = "xvfb-run -a -s '-screen 0 1280x720x24 -ardelay 30000' bash '" + script.string() + "' 2>&1";
     FILE* pipe = ::popen(cmd.c_str(), "r");
     char buf[4096];
     std::size_t n;
