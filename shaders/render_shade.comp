@@ -598,9 +598,10 @@ bool bounceHit(vec3 o, vec3 d, out ivec2 hit) {
   mat3 camera_from_world = transpose(uWorldFromCamera);
   for (int s = 1; s <= uBounceSteps; ++s) {
     vec3 c = camera_from_world * (o + (uBounceStep * float(s)) * d - uCameraPosition);
-    if (c.z <= 1e-4) return false;
-    ivec2 q = ivec2(floor(c.xy / c.z * uFocal + 0.5 * vec2(uSize)));
-    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, uSize))) return false;
+    if (!(c.z > 1e-4)) return false;  // behind the camera (or not a number)
+    vec2 f = floor(c.xy / c.z * uFocal + 0.5 * vec2(uSize));
+    if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(uSize.x) && f.y < float(uSize.y))) return false;
+    ivec2 q = ivec2(f);
     vec4 gp = imageLoad(uGPosition, q);
     if (gp.w < 0.5) continue;
     float depth = dot(uWorldFromCamera[2], gp.xyz - uCameraPosition);

@@ -284,9 +284,9 @@ bool BounceHit(const ReferenceInputs& in, const glm::dvec3& o, const glm::dvec3&
   const double focal = in.camera.focal_px();
   for (int s = 1; s <= in.options.bounce_steps; ++s) {
     const glm::dvec3 c = camera_from_world * (o + (step * s) * d - in.camera.position);
-    if (c.z <= 1e-4) return false;
+    if (!(c.z > 1e-4)) return false;  // behind the camera (or not a number)
     const double x = std::floor(c.x / c.z * focal + 0.5 * g.width), y = std::floor(c.y / c.z * focal + 0.5 * g.height);
-    if (x < 0 || y < 0 || x >= g.width || y >= g.height) return false;
+    if (!(x >= 0 && y >= 0 && x < g.width && y < g.height)) return false;
     const std::size_t q = static_cast<std::size_t>(y) * static_cast<std::size_t>(g.width) + static_cast<std::size_t>(x);
     if (g.position[4 * q + 3] < 0.5f) continue;
     const glm::dvec3 surface(g.position[4 * q], g.position[4 * q + 1], g.position[4 * q + 2]);
