@@ -507,17 +507,19 @@ float peakRaysVisibility(vec3 o, int k) {
   return lit / 7.0;
 }
 
+// Peak k's visibility from a surface point: its rays from `surface` (uExactTriangles), or its cone
+// from `p`, the cones' origin off the surface.
+float peakVisibility(vec3 p, vec3 surface, vec3 n, int k) {
+  if (uExactTriangles > 0) return peakRaysVisibility(surface + uExactRayOffset * n, k);
+  return traceCone(p, peaks[k].axis_lambda.xyz, min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle));
+}
+
 void tracePeakCones(vec3 p, out float peak_visibility[kMaxPeaks], inout uvec4 count) {
   for (int k = 0; k < kMaxPeaks; ++k) peak_visibility[k] = 1.0;
   if (uPeakCones == 0) return;
   for (int k = 0; k < kMaxPeaks; ++k) {
     if (k >= uPeakCount) continue;
-    if (uExactTriangles > 0) {
-      peak_visibility[k] = peakRaysVisibility(gSurface + uExactRayOffset * gNormal, k);
-    } else {
-      float a = min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle);
-      peak_visibility[k] = traceCone(p, peaks[k].axis_lambda.xyz, a);
-    }
+    peak_visibility[k] = peakVisibility(p, gSurface, gNormal, k);
     count.y += 1u;
   }
 }
@@ -628,11 +630,7 @@ vec3 bounceRadiance(ivec2 q, vec3 wo_in) {
   vec3 wo = bendView(n, wo_in);
   float visible[kMaxPeaks];
   for (int k = 0; k < kMaxPeaks; ++k) {
-    visible[k] = 1.0;
-    if (k >= uPeakCount) continue;
-    visible[k] = uExactTriangles > 0 ? peakRaysVisibility(gp.xyz + uExactRayOffset * n, k)
-                                     : traceCone(gp.xyz + uSurfaceOffset * n, peaks[k].axis_lambda.xyz,
-                                                 min(halfValueAngle(peaks[k].axis_lambda.w), uMaxConeHalfAngle));
+    visible[k] = k < uPeakCount ? peakVisibility(gp.xyz + uSurfaceOffset * n, gp.xyz, n, k) : 1.0;
   }
   gLinear = vec3(0.0);  // a specular lobe's integrals have no linear factor
   vec3 radiance = vec3(0.0);

@@ -226,6 +226,16 @@ void ShadePeaks(const material::Lobe& lobe, const std::vector<double>& peak_visi
   }
 }
 
+// A peak's visibility from a surface point: its rays from `surface` (RenderOptions::
+// exact_peak_shadows), or its cone from `p`, the cones' origin off the surface; 1 without geometry.
+double PeakVisibility(const glm::dvec3& p, const glm::dvec3& surface, const glm::dvec3& normal,
+                      const lighting::RgbSg& peak, const ReferenceInputs& in) {
+  if (in.bvh) return PeakRaysVisibility(surface, normal, peak, *in.bvh);
+  if (!in.grid) return 1.0;
+  const double a = std::min(HalfValueAngle(peak.lambda), visibility::kMaxConeHalfAngle);
+  return in.grid->TraceCone({glm::vec3(p), glm::vec3(peak.axis), static_cast<float>(a)}, in.options.trace);
+}
+
 // `p` the cones' origin; `surface` and `normal` the point shaded, where an exact ray starts
 // (RenderOptions::exact_peak_shadows).
 std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surface, const glm::dvec3& normal,
@@ -239,12 +249,7 @@ std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surfac
     return v;
   }
   for (std::size_t k = 0; k < traced; ++k) {
-    if (in.bvh) {
-      v[k] = PeakRaysVisibility(surface, normal, peaks[k], *in.bvh);
-    } else {
-      const double a = std::min(HalfValueAngle(peaks[k].lambda), visibility::kMaxConeHalfAngle);
-      v[k] = in.grid->TraceCone({glm::vec3(p), glm::vec3(peaks[k].axis), static_cast<float>(a)}, in.options.trace);
-    }
+    v[k] = PeakVisibility(p, surface, normal, peaks[k], in);
     count->cones += 1;
   }
   return v;
@@ -314,16 +319,8 @@ glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::d
   if (glm::dot(n, wo_in) <= 0) return emitted;
   const PreparedLighting& L = *in.lighting;
   std::vector<double> visible(std::min<std::size_t>(L.peaks.size(), TripleProductRenderer::kMaxPeakCones), 1.0);
-  for (std::size_t k = 0; k < visible.size(); ++k) {
-    if (in.bvh) {
-      visible[k] = PeakRaysVisibility(x, n, L.peaks[k], *in.bvh);
-    } else if (in.grid) {
-      const double a = std::min(HalfValueAngle(L.peaks[k].lambda), visibility::kMaxConeHalfAngle);
-      const glm::dvec3 o = x + n * (in.options.surface_offset_voxels * in.grid->spec().voxel_size);
-      visible[k] =
-          in.grid->TraceCone({glm::vec3(o), glm::vec3(L.peaks[k].axis), static_cast<float>(a)}, in.options.trace);
-    }
-  }
+  const glm::dvec3 origin = x + n * (in.options.surface_offset_voxels * in.grid->spec().voxel_size);
+  for (std::size_t k = 0; k < visible.size(); ++k) visible[k] = PeakVisibility(origin, x, n, L.peaks[k], in);
   std::vector<material::Lobe> lobes;
   std::vector<int> term_of;
   AppendMaterialLobes(in, q, material, material::ShadingFrame::FromNormal(n), wo_in, &lobes, &term_of,
