@@ -93,7 +93,8 @@ void BM_LightingBuilder(benchmark::State& state) {
     setup.errors = park->evaluator->Evaluate(model);
     setup.sgs = model.sg_count();
   }
-  double peaks_ms = 0, prepare_ms = 0, transform_ms = 0;
+  double peaks_ms = 0, prepare_ms = 0, transform_ms = 0, correction_ms = 0;
+  std::vector<double> level_ms(static_cast<std::size_t>(levels), 0.0);
   for (auto _ : state) {
     lighting::LightingReport report;
     lighting::SgLighting model = setup.builder->Build(frame, &report);
@@ -101,12 +102,18 @@ void BM_LightingBuilder(benchmark::State& state) {
     peaks_ms += report.peaks_ms;
     prepare_ms += report.transform.prepare_ms;
     transform_ms += report.transform.total_ms;
+    correction_ms += report.transform.correction_ms;
+    for (const auto& l : report.transform.levels)
+      if (l.level < levels) level_ms[static_cast<std::size_t>(l.level)] += l.ms;
   }
   // Where the time goes, as means over the iterations.
   const double n = std::max<double>(1, static_cast<double>(state.iterations()));
   state.counters["peaks_ms"] = peaks_ms / n;
   state.counters["prepare_ms"] = prepare_ms / n;
   state.counters["transform_ms"] = transform_ms / n;
+  state.counters["correction_ms"] = correction_ms / n;
+  for (int l = 0; l < levels; ++l)
+    state.counters["level" + std::to_string(l) + "_ms"] = level_ms[static_cast<std::size_t>(l)] / n;
   state.counters["sgs"] = setup.sgs;
   state.counters["diffuse"] = setup.errors.diffuse;
   state.counters["glossy20"] = setup.errors.glossy20;

@@ -64,7 +64,9 @@ struct ResidualTransformOptions {
   // over-relaxing moves faster towards the same fit: on the 18 maps at 2048 wide with peaks, three
   // passes at ω = 1.7 left each glossy-200 ratio to the least-squares optimum below or within 0.03
   // of four passes at ω = 1 (bridge 1.48 → 1.23, forest 1.30 → 1.18 in `odvr bench light`), the
-  // glossy-20 ratios within 0.05, for one pass less per fine level.
+  // glossy-20 ratios within 0.05, for one pass less per fine level. One pass fewer again (two, at
+  // ω = 1.7 or 1.9) saved 11 % of the 5-level time at 2048 wide (median 8.2 → 7.3 ms) but took
+  // bridge's glossy-200 ratio from 1.16 to 2.15 and 2.38 (2026-12-05, with peaks): three stay.
   double fine_relaxation = 1.7;
   // Working width of level s: base_width·2^s (at least 64, at most the input's). 32 puts level 4
   // (σ = 1.5°) on a 512-wide grid, two pixels per σ: `odvr bench light --base-width 32|64` on
