@@ -66,6 +66,22 @@ vec3 schlick(vec3 f0, float cos_theta) {
   return f0 + (vec3(1.0) - f0) * (m2 * m2 * m);
 }
 
+// material::FresnelOf(kPrincipled): Blender's Principled BSDF (v1), as the glTF importer makes it
+// (specular 0.5, so IOR 1.5): the dielectric Fresnel of IOR 1.5 remapped from its 0.04 at normal
+// incidence to f0 (f0 + (1 − f0)(F(cos) − 0.04)/0.96), where Schlick's (1 − cos)⁵ stands for it.
+vec3 principledFresnel(vec3 f0, float cos_theta) {
+  float c = clamp(abs(cos_theta), 0.0, 1.0);
+  float g = sqrt(1.25 + c * c);  // √(η² − 1 + c²), η = 1.5
+  float a = (g - c) / (g + c);
+  float b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
+  float f = 0.5 * a * a * (1.0 + b * b);
+  return f0 + (vec3(1.0) - f0) * max((f - 0.04) / 0.96, 0.0);
+}
+
+vec3 fresnelOf(bool principled, vec3 f0, float cos_theta) {
+  return principled ? principledFresnel(f0, cos_theta) : schlick(f0, cos_theta);
+}
+
 float smithLambda(bool ggx, float alpha, float cos_theta) {
   float c = clamp(cos_theta, 1e-9, 1.0);
   float tan2 = max(0.0, 1.0 - c * c) / (c * c);
@@ -112,13 +128,13 @@ const int kMConstant = 0;
 const int kMCookTorrance = 1;
 const int kMWard = 2;
 
-vec3 mAt(int kind, vec3 color, float alpha, bool ggx, vec3 n, vec3 wo, vec3 wi) {
+vec3 mAt(int kind, vec3 color, float alpha, bool ggx, bool principled, vec3 n, vec3 wo, vec3 wi) {
   if (kind == kMConstant) return color;
   float cos_i = max(dot(n, wi), kMinCosView), cos_o = dot(n, wo);
   if (kind == kMWard) return color / (4.0 * kLobePi * alpha * alpha * sqrt(cos_i * cos_o));
   vec3 h = normalize(wi + wo);
   float g = 1.0 / (1.0 + smithLambda(ggx, alpha, cos_i) + smithLambda(ggx, alpha, cos_o));
-  return schlick(color, dot(wi, h)) * (g / (4.0 * cos_i * cos_o));
+  return fresnelOf(principled, color, dot(wi, h)) * (g / (4.0 * cos_i * cos_o));
 }
 
 // material::PushWarped: the half-vector SG (n, λ_h, amplitude) warped by eq. 4.10, or split into
@@ -136,6 +152,7 @@ struct TermLobes {
   vec3 color;           // M's colour parameter (Phong: its weight)
   float alpha, amplitude;
   bool ggx;
+  bool principled;      // Cook-Torrance's F: the Principled BSDF's (glTF metallic-roughness) or Schlick's
   vec3 axis;            // warped (or Phong) axis
   float lambda;         // its λ (Phong's exponent; eq. 4.10's warp)
   float lambda_h;       // the half-vector λ
@@ -206,6 +223,7 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
   t.cosine_linear = vec3(0.0);
   t.cosine_grazing = vec3(0.0);
   t.kind = -1;
+  t.principled = false;
   t.tail = false;
   if (type == kBrdfGltf || type == kBrdfMetallicRoughness) {
     if (type == kBrdfMetallicRoughness) {
@@ -231,6 +249,7 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
                        a0;
     t.count = 1;
     float alpha = clamp(r * r, kMinAlpha, 1.0);
+    t.principled = true;
     describeGgx(t, f0, alpha, n, wo);
   } else if (type == kBrdfLambertian) {
     t.has_cosine = true;
@@ -288,7 +307,7 @@ bool termLobe(in TermLobes t, int i, vec3 n, vec3 wo, out vec3 axis, out float l
     axis = t.tail_axis;
     lambda = t.tail_lambda;
     amplitude = t.tail_amplitude;
-    m = mAt(t.kind, t.color, t.alpha, t.ggx, n, wo, axis);
+    m = mAt(t.kind, t.color, t.alpha, t.ggx, t.principled, n, wo, axis);
   } else if (t.kind == kMPhong) {
     axis = t.axis;
     lambda = t.lambda;
@@ -296,17 +315,17 @@ bool termLobe(in TermLobes t, int i, vec3 n, vec3 wo, out vec3 axis, out float l
   } else if (!t.split) {
     axis = t.axis;
     lambda = t.lambda;
-    m = mAt(t.kind, t.color, t.alpha, t.ggx, n, wo, axis);
+    m = mAt(t.kind, t.color, t.alpha, t.ggx, t.principled, n, wo, axis);
   } else if (t.half_count == 0) {
     axis = t.axis;
     lambda = t.split_lambda;
-    m = mAt(t.kind, t.color, t.alpha, t.ggx, n, wo, axis);
+    m = mAt(t.kind, t.color, t.alpha, t.ggx, t.principled, n, wo, axis);
   } else {
     float tau = float(i - t.half_count) * t.delta;
     axis = normalize(t.axis + tau * t.across);
     lambda = t.split_lambda;
     amplitude *= t.scale * exp(-tau * tau / (2.0 * t.s_conv * t.s_conv));
-    m = mAt(t.kind, t.color, t.alpha, t.ggx, n, wo, axis);
+    m = mAt(t.kind, t.color, t.alpha, t.ggx, t.principled, n, wo, axis);
   }
   float cos_axis = dot(n, axis);
   if (cos_axis <= 0.0 || (m.x <= 0.0 && m.y <= 0.0 && m.z <= 0.0)) return false;
@@ -333,7 +352,7 @@ vec3 ggxLobeResidual(in TermLobes t, vec3 n, vec3 wo, vec3 wi) {
     float d = ch > 0.0 ? (ch * ch * (a2 - 1.0) + 1.0) : 1.0;
     float ndf = ch > 0.0 ? a2 / (kLobePi * d * d) : 0.0;
     float g = 1.0 / (1.0 + smithLambda(true, t.alpha, cos_i) + smithLambda(true, t.alpha, cos_o));
-    r = schlick(t.color, dot(wi, h)) * (ndf * g / (4.0 * cos_o));
+    r = fresnelOf(t.principled, t.color, dot(wi, h)) * (ndf * g / (4.0 * cos_o));
   }
   for (int i = t.has_cosine ? 1 : 0; i < t.count; ++i) {
     vec3 axis, weight;

@@ -178,7 +178,7 @@ vec3 metallicRoughness(vec3 base, float metallic, float roughness, vec3 n, vec3 
   vec3 f0 = mix(vec3(0.04), base, metallic);
   vec3 h = normalize(wi + wo);
   float ci = dot(n, wi), co = dot(n, wo);
-  vec3 fresnel = schlick(f0, dot(wo, h));
+  vec3 fresnel = principledFresnel(f0, dot(wo, h));
   float g = 1.0 / (1.0 + smithLambda(true, alpha, ci) + smithLambda(true, alpha, co));
   return base * ((1.0 - metallic) * principledDiffuseFactor(ci, co, dot(wi, wo), r) / kLobePi) +
          fresnel * (ggxD(alpha, dot(n, h)) * g / (4.0 * ci * co));

@@ -25,12 +25,6 @@ glm::dvec3 BendView(const ShadingFrame& f, const glm::dvec3& wo) {
   return std::sqrt(1.0 - kMinCosView * kMinCosView) * tangential + kMinCosView * f.n;
 }
 
-glm::dvec3 Schlick(const glm::dvec3& f0, double cos_theta) {
-  const double m = std::clamp(1.0 - cos_theta, 0.0, 1.0);
-  const double m2 = m * m;
-  return f0 + (glm::dvec3(1.0) - f0) * (m2 * m2 * m);
-}
-
 double NdfValue(Ndf ndf, double alpha, double cos_h) {
   if (cos_h <= 0) return 0;
   const double a2 = alpha * alpha, c2 = cos_h * cos_h;
@@ -105,14 +99,14 @@ glm::dvec3 Analytic(const CookTorrance& m, const ShadingFrame& f, const glm::dve
   const double cos_i = glm::dot(f.n, wi), cos_o = glm::dot(f.n, wo);
   const double d = NdfValue(m.ndf, alpha, glm::dot(f.n, h));
   const double g = SmithG(m.ndf, alpha, cos_i, cos_o);
-  return Schlick(m.f0, glm::dot(wi, h)) * (d * g / (4.0 * cos_i * cos_o));
+  return FresnelOf(m.fresnel, m.f0, glm::dot(wi, h)) * (d * g / (4.0 * cos_i * cos_o));
 }
 
 glm::dvec3 Analytic(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
   const MrParams p = FromMetallicRoughness(m);
   const glm::dvec3 h = glm::normalize(wi + wo);
   const double cos_i = glm::dot(f.n, wi), cos_o = glm::dot(f.n, wo);
-  const glm::dvec3 fresnel = Schlick(p.f0, glm::dot(wo, h));
+  const glm::dvec3 fresnel = FresnelOf(Fresnel::kPrincipled, p.f0, glm::dot(wo, h));
   const double d = NdfValue(Ndf::kGgx, p.alpha, glm::dot(f.n, h));
   const double g = SmithG(Ndf::kGgx, p.alpha, cos_i, cos_o);
   const double diffuse = PrincipledDiffuseFactor(cos_i, cos_o, glm::dot(wi, wo), p.roughness);
@@ -220,14 +214,14 @@ void LobesOf(const Ward& m, const ShadingFrame& f, const glm::dvec3& wo, const L
   });
 }
 
-void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, const ShadingFrame& f, const glm::dvec3& wo,
-                      const LobeOptions& o, std::vector<Lobe>* out) {
+void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, Fresnel fresnel, const ShadingFrame& f,
+                      const glm::dvec3& wo, const LobeOptions& o, std::vector<Lobe>* out) {
   alpha = ClampAlpha(alpha);
   const double cos_o = glm::dot(f.n, wo);
   const auto m_of = [&](const glm::dvec3& wi) {
     const double cos_i = std::max(glm::dot(f.n, wi), kMinCosView);
     const glm::dvec3 h = glm::normalize(wi + wo);
-    return Schlick(f0, glm::dot(wi, h)) * (SmithG(ndf, alpha, cos_i, cos_o) / (4.0 * cos_i * cos_o));
+    return FresnelOf(fresnel, f0, glm::dot(wi, h)) * (SmithG(ndf, alpha, cos_i, cos_o) / (4.0 * cos_i * cos_o));
   };
   if (ndf == Ndf::kBeckmann) {
     PushWarped(Sg{f.n, NdfSgLambda(alpha), 1.0 / (kPi * alpha * alpha)}, m_of, f, wo, o, out);
@@ -248,7 +242,7 @@ void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, const Shading
 
 void LobesOf(const CookTorrance& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
              std::vector<Lobe>* out) {
-  PushCookTorrance(m.f0, m.alpha, m.ndf, f, wo, o, out);
+  PushCookTorrance(m.f0, m.alpha, m.ndf, m.fresnel, f, wo, o, out);
 }
 
 void LobesOf(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
@@ -266,10 +260,25 @@ void LobesOf(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3
   const glm::dvec3 diffuse = p.c_diff * (a0 / kPi);
   if (diffuse.x > 0 || diffuse.y > 0 || diffuse.z > 0)
     out->push_back({CosineSg(f.n), diffuse, (a1 / a0) * wo, true, b / a0, wo});
-  PushCookTorrance(p.f0, p.alpha, Ndf::kGgx, f, wo, o, out);
+  PushCookTorrance(p.f0, p.alpha, Ndf::kGgx, Fresnel::kPrincipled, f, wo, o, out);
 }
 
 }  // namespace
+
+glm::dvec3 FresnelOf(Fresnel fresnel, const glm::dvec3& f0, double cos_theta) {
+  double w;
+  if (fresnel == Fresnel::kSchlick) {
+    const double m = std::clamp(1.0 - cos_theta, 0.0, 1.0);
+    const double m2 = m * m;
+    w = m2 * m2 * m;
+  } else {
+    // Cycles' fresnel_dielectric_cos with η = 1.5: g = √(η² − 1 + c²).
+    const double c = std::clamp(std::abs(cos_theta), 0.0, 1.0), g = std::sqrt(1.25 + c * c);
+    const double a = (g - c) / (g + c), b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
+    w = std::max((0.5 * a * a * (1.0 + b * b) - 0.04) / 0.96, 0.0);
+  }
+  return f0 + (glm::dvec3(1.0) - f0) * w;
+}
 
 double PrincipledDiffuseFactor(double cos_i, double cos_o, double cos_io, double roughness) {
   const double fl = std::pow(std::clamp(1.0 - cos_i, 0.0, 1.0), 5.0);
@@ -537,8 +546,9 @@ glm::dvec3 GgxLobeResidual(const Brdf& brdf, const ShadingFrame& frame, const gl
   const auto* mr = std::get_if<MetallicRoughness>(&brdf);
   const auto* ct = std::get_if<CookTorrance>(&brdf);
   if (!mr && !(ct && ct->ndf == Ndf::kGgx)) return glm::dvec3(0);
-  const CookTorrance ggx =
-      mr ? CookTorrance{FromMetallicRoughness(*mr).f0, FromMetallicRoughness(*mr).alpha, Ndf::kGgx} : *ct;
+  const CookTorrance ggx = mr ? CookTorrance{FromMetallicRoughness(*mr).f0, FromMetallicRoughness(*mr).alpha, Ndf::kGgx,
+                                             Fresnel::kPrincipled}
+                              : *ct;
   const double cos_i = glm::dot(frame.n, wi);
   glm::dvec3 exact = cos_i > 0 ? Analytic(ggx, frame, wi, v) * cos_i : glm::dvec3(0);
   for (const Lobe& lobe : lobes)

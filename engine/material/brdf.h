@@ -45,7 +45,11 @@
 // - glTF metallic-roughness, as Blender's glTF importer makes it: a Principled BSDF (v1, Blender
 //   3.4, specular 0.5), the material our Cycles references and street_a's were rendered with.
 //   α = roughness² clamped to ≥ kMinAlpha, F0 = mix(0.04, base, metallic), c_diff = base
-//   (1 − metallic); f = c_diff f_d + D F G/(4 (n·wi)(n·wo)) with GGX and Schlick's F(wi·h).
+//   (1 − metallic); f = c_diff f_d + D F G/(4 (n·wi)(n·wo)) with GGX and the Principled BSDF's
+//   F(wi·h) (Fresnel::kPrincipled: the dielectric Fresnel of IOR 1.5 remapped from 0.04 to F0,
+//   where glTF's Schlick has (1 − cos)⁵; a dielectric reflects 1.2–1.3× Schlick's at 45–65°, and
+//   against the Cycles references every car's error fell with it:
+//   docs/benchmarks/render_accuracy.md, "The Principled BSDF's Fresnel").
 //   f_d is Cycles' principled diffuse (Burley 2015): (1/π)[(1 − FL/2)(1 − FV/2) + RR (FL + FV +
 //   FL FV (RR − 1))], FL = (1 − n·wi)⁵, FV = (1 − n·wo)⁵, RR = roughness (1 + wi·wo): the
 //   retro-reflection of rough surfaces brightens grazing views and light from behind the viewer.
@@ -136,11 +140,18 @@ struct Ward {
 
 enum class Ndf { kGgx, kBeckmann };
 
+// F(cos) = f0 + (1 − f0) w(cos): Schlick's w = (1 − cos)⁵, or Blender's Principled BSDF (v1):
+// w = (F_d(cos) − F_d(1)) / (1 − F_d(1)), F_d the unpolarized Fresnel reflectance of a dielectric
+// of IOR 1.5 (F_d(1) = 0.04), which the Principled BSDF's specular 0.5 gives.
+enum class Fresnel { kSchlick, kPrincipled };
+glm::dvec3 FresnelOf(Fresnel fresnel, const glm::dvec3& f0, double cos_theta);
+
 // f = D(h) F(wi·h) G(wi, wo) / (4 (n·wi)(n·wo)).
 struct CookTorrance {
-  glm::dvec3 f0{0.04};  // Fresnel reflectance at normal incidence (Schlick)
+  glm::dvec3 f0{0.04};  // Fresnel reflectance at normal incidence
   double alpha = 0.2;   // GGX α or Beckmann m
   Ndf ndf = Ndf::kGgx;
+  Fresnel fresnel = Fresnel::kSchlick;
 };
 
 // glTF 2.0 metallic-roughness, already sampled (base colour linear, not sRGB).
