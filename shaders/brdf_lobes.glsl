@@ -92,6 +92,13 @@ float smithLambda(bool ggx, float alpha, float cos_theta) {
   return (1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a);
 }
 
+// material::SmithG: height-correlated, or (`separable`, the Principled BSDF in Cycles 3.x) the
+// product G1(wi) G1(wo).
+float smithG(bool ggx, float alpha, float cos_i, float cos_o, bool separable) {
+  float li = smithLambda(ggx, alpha, cos_i), lo = smithLambda(ggx, alpha, cos_o);
+  return separable ? 1.0 / ((1.0 + li) * (1.0 + lo)) : 1.0 / (1.0 + li + lo);
+}
+
 // Cycles' principled diffuse (Burley 2015) relative to 1/π, and its directional albedo
 // (material::PrincipledDiffuseFactor / PrincipledDiffuseAlbedo derive them).
 float principledDiffuseFactor(float cos_i, float cos_o, float cos_io, float roughness) {
@@ -133,7 +140,7 @@ vec3 mAt(int kind, vec3 color, float alpha, bool ggx, bool principled, vec3 n, v
   float cos_i = max(dot(n, wi), kMinCosView), cos_o = dot(n, wo);
   if (kind == kMWard) return color / (4.0 * kLobePi * alpha * alpha * sqrt(cos_i * cos_o));
   vec3 h = normalize(wi + wo);
-  float g = 1.0 / (1.0 + smithLambda(ggx, alpha, cos_i) + smithLambda(ggx, alpha, cos_o));
+  float g = smithG(ggx, alpha, cos_i, cos_o, principled);
   return fresnelOf(principled, color, dot(wi, h)) * (g / (4.0 * cos_i * cos_o));
 }
 
@@ -152,7 +159,8 @@ struct TermLobes {
   vec3 color;           // M's colour parameter (Phong: its weight)
   float alpha, amplitude;
   bool ggx;
-  bool principled;      // Cook-Torrance's F: the Principled BSDF's (glTF metallic-roughness) or Schlick's
+  bool principled;      // Cook-Torrance's F and G: the Principled BSDF's (glTF metallic-roughness) or Schlick's
+                        // and the height-correlated Smith (material::CookTorrance::principled)
   vec3 axis;            // warped (or Phong) axis
   float lambda;         // its λ (Phong's exponent; eq. 4.10's warp)
   float lambda_h;       // the half-vector λ
@@ -351,7 +359,7 @@ vec3 ggxLobeResidual(in TermLobes t, vec3 n, vec3 wo, vec3 wi) {
     float a2 = t.alpha * t.alpha, ch = dot(n, h);
     float d = ch > 0.0 ? (ch * ch * (a2 - 1.0) + 1.0) : 1.0;
     float ndf = ch > 0.0 ? a2 / (kLobePi * d * d) : 0.0;
-    float g = 1.0 / (1.0 + smithLambda(true, t.alpha, cos_i) + smithLambda(true, t.alpha, cos_o));
+    float g = smithG(true, t.alpha, cos_i, cos_o, t.principled);
     r = fresnelOf(t.principled, t.color, dot(wi, h)) * (ndf * g / (4.0 * cos_o));
   }
   for (int i = t.has_cosine ? 1 : 0; i < t.count; ++i) {

@@ -166,7 +166,7 @@ vec3 cookTorrance(vec3 f0, float alpha, bool ggx, vec3 n, vec3 wi, vec3 wo) {
   vec3 h = normalize(wi + wo);
   float ci = dot(n, wi), co = dot(n, wo);
   float d = ggx ? ggxD(alpha, dot(n, h)) : beckmannD(alpha, dot(n, h));
-  float g = 1.0 / (1.0 + smithLambda(ggx, alpha, ci) + smithLambda(ggx, alpha, co));
+  float g = smithG(ggx, alpha, ci, co, false);
   return schlick(f0, dot(wi, h)) * (d * g / (4.0 * ci * co));
 }
 
@@ -179,7 +179,7 @@ vec3 metallicRoughness(vec3 base, float metallic, float roughness, vec3 n, vec3 
   vec3 h = normalize(wi + wo);
   float ci = dot(n, wi), co = dot(n, wo);
   vec3 fresnel = principledFresnel(f0, dot(wo, h));
-  float g = 1.0 / (1.0 + smithLambda(true, alpha, ci) + smithLambda(true, alpha, co));
+  float g = smithG(true, alpha, ci, co, true);
   return base * ((1.0 - metallic) * principledDiffuseFactor(ci, co, dot(wi, wo), r) / kLobePi) +
          fresnel * (ggxD(alpha, dot(n, h)) * g / (4.0 * ci * co));
 }

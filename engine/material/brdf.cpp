@@ -47,8 +47,10 @@ double SmithLambda(Ndf ndf, double alpha, double cos_theta) {
   return (1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a);
 }
 
-double SmithG(Ndf ndf, double alpha, double cos_i, double cos_o) {
-  return 1.0 / (1.0 + SmithLambda(ndf, alpha, cos_i) + SmithLambda(ndf, alpha, cos_o));
+// Height-correlated, or (`separable`, Cycles 3.x's GGX) the product G1(wi) G1(wo).
+double SmithG(Ndf ndf, double alpha, double cos_i, double cos_o, bool separable = false) {
+  const double li = SmithLambda(ndf, alpha, cos_i), lo = SmithLambda(ndf, alpha, cos_o);
+  return separable ? 1.0 / ((1.0 + li) * (1.0 + lo)) : 1.0 / (1.0 + li + lo);
 }
 
 double ClampAlpha(double alpha) { return std::clamp(alpha, kMinAlpha, 1.0); }
@@ -98,8 +100,9 @@ glm::dvec3 Analytic(const CookTorrance& m, const ShadingFrame& f, const glm::dve
   const glm::dvec3 h = glm::normalize(wi + wo);
   const double cos_i = glm::dot(f.n, wi), cos_o = glm::dot(f.n, wo);
   const double d = NdfValue(m.ndf, alpha, glm::dot(f.n, h));
-  const double g = SmithG(m.ndf, alpha, cos_i, cos_o);
-  return FresnelOf(m.fresnel, m.f0, glm::dot(wi, h)) * (d * g / (4.0 * cos_i * cos_o));
+  const double g = SmithG(m.ndf, alpha, cos_i, cos_o, m.principled);
+  return FresnelOf(m.principled ? Fresnel::kPrincipled : Fresnel::kSchlick, m.f0, glm::dot(wi, h)) *
+         (d * g / (4.0 * cos_i * cos_o));
 }
 
 glm::dvec3 Analytic(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
@@ -108,7 +111,7 @@ glm::dvec3 Analytic(const MetallicRoughness& m, const ShadingFrame& f, const glm
   const double cos_i = glm::dot(f.n, wi), cos_o = glm::dot(f.n, wo);
   const glm::dvec3 fresnel = FresnelOf(Fresnel::kPrincipled, p.f0, glm::dot(wo, h));
   const double d = NdfValue(Ndf::kGgx, p.alpha, glm::dot(f.n, h));
-  const double g = SmithG(Ndf::kGgx, p.alpha, cos_i, cos_o);
+  const double g = SmithG(Ndf::kGgx, p.alpha, cos_i, cos_o, true);
   const double diffuse = PrincipledDiffuseFactor(cos_i, cos_o, glm::dot(wi, wo), p.roughness);
   return p.c_diff * (diffuse / kPi) + fresnel * (d * g / (4.0 * cos_i * cos_o));
 }
@@ -214,14 +217,16 @@ void LobesOf(const Ward& m, const ShadingFrame& f, const glm::dvec3& wo, const L
   });
 }
 
-void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, Fresnel fresnel, const ShadingFrame& f,
+// `principled`: CookTorrance::principled.
+void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, bool principled, const ShadingFrame& f,
                       const glm::dvec3& wo, const LobeOptions& o, std::vector<Lobe>* out) {
   alpha = ClampAlpha(alpha);
   const double cos_o = glm::dot(f.n, wo);
   const auto m_of = [&](const glm::dvec3& wi) {
     const double cos_i = std::max(glm::dot(f.n, wi), kMinCosView);
     const glm::dvec3 h = glm::normalize(wi + wo);
-    return FresnelOf(fresnel, f0, glm::dot(wi, h)) * (SmithG(ndf, alpha, cos_i, cos_o) / (4.0 * cos_i * cos_o));
+    return FresnelOf(principled ? Fresnel::kPrincipled : Fresnel::kSchlick, f0, glm::dot(wi, h)) *
+           (SmithG(ndf, alpha, cos_i, cos_o, principled) / (4.0 * cos_i * cos_o));
   };
   if (ndf == Ndf::kBeckmann) {
     PushWarped(Sg{f.n, NdfSgLambda(alpha), 1.0 / (kPi * alpha * alpha)}, m_of, f, wo, o, out);
@@ -242,7 +247,7 @@ void PushCookTorrance(const glm::dvec3& f0, double alpha, Ndf ndf, Fresnel fresn
 
 void LobesOf(const CookTorrance& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
              std::vector<Lobe>* out) {
-  PushCookTorrance(m.f0, m.alpha, m.ndf, m.fresnel, f, wo, o, out);
+  PushCookTorrance(m.f0, m.alpha, m.ndf, m.principled, f, wo, o, out);
 }
 
 void LobesOf(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
@@ -260,7 +265,7 @@ void LobesOf(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3
   const glm::dvec3 diffuse = p.c_diff * (a0 / kPi);
   if (diffuse.x > 0 || diffuse.y > 0 || diffuse.z > 0)
     out->push_back({CosineSg(f.n), diffuse, (a1 / a0) * wo, true, b / a0, wo});
-  PushCookTorrance(p.f0, p.alpha, Ndf::kGgx, Fresnel::kPrincipled, f, wo, o, out);
+  PushCookTorrance(p.f0, p.alpha, Ndf::kGgx, true, f, wo, o, out);
 }
 
 }  // namespace
@@ -546,9 +551,8 @@ glm::dvec3 GgxLobeResidual(const Brdf& brdf, const ShadingFrame& frame, const gl
   const auto* mr = std::get_if<MetallicRoughness>(&brdf);
   const auto* ct = std::get_if<CookTorrance>(&brdf);
   if (!mr && !(ct && ct->ndf == Ndf::kGgx)) return glm::dvec3(0);
-  const CookTorrance ggx = mr ? CookTorrance{FromMetallicRoughness(*mr).f0, FromMetallicRoughness(*mr).alpha, Ndf::kGgx,
-                                             Fresnel::kPrincipled}
-                              : *ct;
+  const CookTorrance ggx =
+      mr ? CookTorrance{FromMetallicRoughness(*mr).f0, FromMetallicRoughness(*mr).alpha, Ndf::kGgx, true} : *ct;
   const double cos_i = glm::dot(frame.n, wi);
   glm::dvec3 exact = cos_i > 0 ? Analytic(ggx, frame, wi, v) * cos_i : glm::dvec3(0);
   for (const Lobe& lobe : lobes)

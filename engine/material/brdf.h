@@ -46,10 +46,11 @@
 //   3.4, specular 0.5), the material our Cycles references and street_a's were rendered with.
 //   α = roughness² clamped to ≥ kMinAlpha, F0 = mix(0.04, base, metallic), c_diff = base
 //   (1 − metallic); f = c_diff f_d + D F G/(4 (n·wi)(n·wo)) with GGX and the Principled BSDF's
-//   F(wi·h) (Fresnel::kPrincipled: the dielectric Fresnel of IOR 1.5 remapped from 0.04 to F0,
-//   where glTF's Schlick has (1 − cos)⁵; a dielectric reflects 1.2–1.3× Schlick's at 45–65°, and
-//   against the Cycles references every car's error fell with it:
-//   docs/benchmarks/render_accuracy.md, "The Principled BSDF's Fresnel").
+//   specular as Cycles 3.x computes it (CookTorrance::principled): F(wi·h) is the dielectric
+//   Fresnel of IOR 1.5 remapped from 0.04 to F0 (Fresnel::kPrincipled), where glTF's Schlick has
+//   (1 − cos)⁵ (a dielectric reflects 1.2–1.3× Schlick's at 45–65°), and G the separable Smith
+//   G1(wi) G1(wo), not the height-correlated one; against the Cycles references every paint's
+//   error fell with them (docs/benchmarks/render_accuracy.md, "The Principled BSDF's specular").
 //   f_d is Cycles' principled diffuse (Burley 2015): (1/π)[(1 − FL/2)(1 − FV/2) + RR (FL + FV +
 //   FL FV (RR − 1))], FL = (1 − n·wi)⁵, FV = (1 − n·wo)⁵, RR = roughness (1 + wi·wo): the
 //   retro-reflection of rough surfaces brightens grazing views and light from behind the viewer.
@@ -151,7 +152,9 @@ struct CookTorrance {
   glm::dvec3 f0{0.04};  // Fresnel reflectance at normal incidence
   double alpha = 0.2;   // GGX α or Beckmann m
   Ndf ndf = Ndf::kGgx;
-  Fresnel fresnel = Fresnel::kSchlick;
+  // Schlick's F and the height-correlated Smith G, or (true) the Principled BSDF v1's specular in
+  // Cycles 3.x: FresnelOf(kPrincipled) and the separable G1(wi) G1(wo).
+  bool principled = false;
 };
 
 // glTF 2.0 metallic-roughness, already sampled (base colour linear, not sRGB).

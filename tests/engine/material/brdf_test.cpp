@@ -229,9 +229,10 @@ TEST(Brdf, GgxResidualRecoversTheTailUnderASharpLight) {
 
 // The diffuse paint (roughness 1: GGX α = 1, D the constant 1/π) under a sharp light anywhere
 // over the hemisphere: its GGX layer's lobe is one constant SG weighted at the mirror direction,
-// which lacks the exact layer's n·wi and Smith G, so alone it reads up to 2× bright at grazing
-// views; the residual restores quadrature's answer (it is what lowered studio_diffuse's bias
-// 0.987 → 0.937, render_accuracy.md: the surplus had hidden darkening elsewhere).
+// which lacks the exact layer's n·wi and Smith G, so alone it reads up to 1.3× bright at grazing
+// views (2× with the height-correlated G, before the Principled BSDF's separable one); the
+// residual restores quadrature's answer (it is what lowered studio_diffuse's bias 0.987 → 0.937,
+// render_accuracy.md: the surplus had hidden darkening elsewhere).
 TEST(Brdf, GgxResidualIsExactForTheRoughDiffusePaint) {
   const ShadingFrame fr = ShadingFrame::FromNormal(glm::normalize(glm::dvec3(0.2, 1.0, 0.3)), glm::dvec3(1, 0, 0.1));
   const Brdf brdf = MetallicRoughness{glm::dvec3(0.6), 0.0, 1.0};
@@ -264,7 +265,7 @@ TEST(Brdf, GgxResidualIsExactForTheRoughDiffusePaint) {
     }
     std::printf("  [ggx residual] diffuse paint %-24s lobes %6.1f %% -> λ 1000 %5.2f %%, λ 100 %5.2f %%\n",
                 variant.c_str(), 100 * worst_lobes, 100 * worst_sharp, 100 * worst_broad);
-    EXPECT_GT(worst_lobes, 0.5) << variant;
+    EXPECT_GT(worst_lobes, 0.25) << variant;
     EXPECT_LE(worst_sharp, 0.005) << variant;
     // λ 100 at 5° elevation and an 80° view: the 7-point rule spans the horizon's cut (5.2 %).
     EXPECT_LE(worst_broad, 0.06) << variant;
