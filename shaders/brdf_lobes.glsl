@@ -4,7 +4,7 @@
 // only mirrors it, in float. Lobe amplitudes μ are folded into the weights, so every lobe SG has
 // unit amplitude.
 const float kMinCosView = 1e-3;
-const float kMinAlpha = 0.01;
+const float kMinAlpha = 0.002;
 const float kCosineSgLambda = 2.133;
 const float kCosineSgAmplitude = 1.170;
 const float kLobePi = 3.14159265358979323846;
