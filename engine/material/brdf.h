@@ -41,7 +41,8 @@
 //   narrow one holding the peak and a wide one, with 11 % of the peak and 45 % of the energy, for
 //   the tail. The narrow one is warped as LobeOptions says; the wide one always by eq. 4.10 (its
 //   anisotropy matters less, and splitting it would double the glossy lobes and their cones).
-//   F is Schlick's, G the height-correlated Smith term 1/(1 + Λ(wi) + Λ(wo)) of the chosen NDF.
+//   F is Schlick's, G the height-correlated Smith term 1/(1 + Λ(wi) + Λ(wo)) of the chosen NDF
+//   (CookTorrance::principled: the Principled BSDF's F and separable G, as metallic-roughness).
 // - glTF metallic-roughness, as Blender's glTF importer makes it: a Principled BSDF (v1, Blender
 //   3.4, specular 0.5), the material our Cycles references and street_a's were rendered with.
 //   α = roughness² clamped to ≥ kMinAlpha, F0 = mix(0.04, base, metallic), c_diff = base
