@@ -48,7 +48,7 @@ double SmithLambda(Ndf ndf, double alpha, double cos_theta) {
 }
 
 // Height-correlated, or (`separable`, Cycles 3.x's GGX) the product G1(wi) G1(wo).
-double SmithG(Ndf ndf, double alpha, double cos_i, double cos_o, bool separable = false) {
+double SmithG(Ndf ndf, double alpha, double cos_i, double cos_o, bool separable) {
   const double li = SmithLambda(ndf, alpha, cos_i), lo = SmithLambda(ndf, alpha, cos_o);
   return separable ? 1.0 / ((1.0 + li) * (1.0 + lo)) : 1.0 / (1.0 + li + lo);
 }

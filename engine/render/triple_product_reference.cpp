@@ -319,7 +319,7 @@ glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::d
   if (glm::dot(n, wo_in) <= 0) return emitted;
   const PreparedLighting& L = *in.lighting;
   std::vector<double> visible(std::min<std::size_t>(L.peaks.size(), TripleProductRenderer::kMaxPeakCones), 1.0);
-  const glm::dvec3 origin = x + n * (in.options.surface_offset_voxels * in.grid->spec().voxel_size);
+  const glm::dvec3 origin = x + n * (in.grid ? in.options.surface_offset_voxels * in.grid->spec().voxel_size : 0.0);
   for (std::size_t k = 0; k < visible.size(); ++k) visible[k] = PeakVisibility(origin, x, n, L.peaks[k], in);
   std::vector<material::Lobe> lobes;
   std::vector<int> term_of;

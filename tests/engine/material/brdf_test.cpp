@@ -382,7 +382,7 @@ TEST(Brdf, CookTorranceSgShadingMatchesQuadrature) {
 // 4.10; split warp 12 → 19 %), aimed 40 → 37 %, the metal within 0.1 point, the rough paint better
 // by 2–3 points; against Cycles every reference's error fell (render_accuracy.md).
 TEST(Brdf, MetallicRoughnessSgShadingMatchesQuadrature) {
-  MeasureModels({{"glTF paint r=0.4 m=0", MetallicRoughness{glm::dvec3(0.6, 0.1, 0.1), 0.0, 0.4}, 0.41, 0.37, 2.2},
+  MeasureModels({{"glTF paint r=0.4 m=0", MetallicRoughness{glm::dvec3(0.6, 0.1, 0.1), 0.0, 0.4}, 0.41, 0.37, 2.15},
                  {"glTF metal r=0.3 m=1", MetallicRoughness{glm::dvec3(0.9, 0.8, 0.6), 1.0, 0.3}, 0.27, 0.9, 1.6},
                  {"glTF rough r=0.9 m=0", MetallicRoughness{glm::dvec3(0.5), 0.0, 0.9}, 0.36, 0.20, 1.05}});
 }
@@ -413,14 +413,14 @@ TEST(Brdf, PrincipledFresnelIsTheDielectricsRemapped) {
 // A metal's metallic-roughness BRDF against Cycles 3.x's GGX reflection as it writes it
 // (bsdf_microfacet_ggx_eval_reflect: D = α²/(π cos⁴θm (α² + tan²θm)²), G1 = 2/(1 + √(1 + α²
 // tan²θ)) for each direction, their product, and the Principled Fresnel at wo·h), rewritten here
-// apart from the code under test. The height-correlated G it replaced reads 1.18× this with view
-// and light both at 80°.
+// apart from the code under test. The height-correlated G it replaced would read 1.18× this with
+// view and light both at 80° (the same formulas, worked by hand), far outside the tolerance.
 TEST(Brdf, MetallicRoughnessSpecularIsCyclesGgx) {
   const ShadingFrame fr = ShadingFrame::FromNormal(glm::normalize(glm::dvec3(0.1, 1.0, -0.2)), glm::dvec3(1, 0, 0));
   const glm::dvec3 base(0.9, 0.6, 0.3);
   const double roughness = 0.6, a2 = std::pow(roughness, 4);
   const auto g1 = [&](double c) { return 2.0 / (1.0 + std::sqrt(1.0 + a2 * (1.0 - c * c) / (c * c))); };
-  double worst = 0, most_above = 0;
+  double worst = 0;
   for (double view_deg : {0.0, 40.0, 80.0})
     for (double light_deg : {10.0, 50.0, 80.0})
       for (double azimuth_deg : {0.0, 90.0, 180.0}) {
@@ -435,12 +435,8 @@ TEST(Brdf, MetallicRoughnessSpecularIsCyclesGgx) {
         const glm::dvec3 cycles = f * (d * g1(ci) * g1(co) * 0.25 / (ci * co));
         const glm::dvec3 ours = Evaluate(MetallicRoughness{base, 1.0, roughness}, fr, wi, wo);
         worst = std::max(worst, std::abs(ours.y / cycles.y - 1.0));
-        const double lo = std::max(0.0, 0.5 * (std::sqrt(1.0 + a2 * (1.0 - ci * ci) / (ci * ci)) - 1.0)),
-                     lv = std::max(0.0, 0.5 * (std::sqrt(1.0 + a2 * (1.0 - co * co) / (co * co)) - 1.0));
-        most_above = std::max(most_above, (1.0 + lo) * (1.0 + lv) / (1.0 + lo + lv));
       }
   EXPECT_LT(worst, 1e-9);
-  EXPECT_NEAR(most_above, 1.178, 0.001);  // what the height-correlated G would have added
 }
 
 // The principled diffuse lobe alone (the clamped-cosine lobe of MetallicRoughness) against
