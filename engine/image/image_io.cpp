@@ -82,21 +82,27 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
 
   sphere::EquirectImage out(spec.width / factor, spec.height / factor);
   const int nch = spec.nchannels;
-  std::vector<float> rows(static_cast<std::size_t>(spec.width) * factor * nch);
+  // A block of rows per read (LoadOptions::read_block_bytes), whole output rows of it.
+  const std::size_t row_bytes = static_cast<std::size_t>(spec.width) * nch * sizeof(float);
+  const int out_rows_per_block = static_cast<int>(std::clamp<std::size_t>(
+      options.read_block_bytes / (row_bytes * factor), 1, static_cast<std::size_t>(out.height)));
+  std::vector<float> rows(static_cast<std::size_t>(spec.width) * factor * out_rows_per_block * nch);
   std::array<float, 256> lut{};
   if (spec.format.basetype == OIIO::TypeDesc::UINT8)
     for (int i = 0; i < 256; ++i) lut[static_cast<std::size_t>(i)] = SrgbToLinear(i / 255.0f);
   const float scale = 1.0f / static_cast<float>(factor * factor);
-  for (int out_row = 0; out_row < out.height; ++out_row) {
-    const int y0 = out_row * factor;
-    if (!in->read_scanlines(0, 0, y0 + spec.y, y0 + spec.y + factor, 0, 0, nch, OIIO::TypeDesc::FLOAT, rows.data())) {
+  for (int block_row = 0; block_row < out.height; block_row += out_rows_per_block) {
+    const int block_rows = std::min(out_rows_per_block, out.height - block_row);
+    const int y0 = block_row * factor, y1 = (block_row + block_rows) * factor;
+    if (!in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, nch, OIIO::TypeDesc::FLOAT, rows.data())) {
       std::string why = in->geterror();
       std::replace(why.begin(), why.end(), '\n', ' ');
-      throw Error(name, "corrupt or truncated at row " + std::to_string(y0) + (why.empty() ? "" : ": " + why));
+      throw Error(name, "corrupt or truncated in rows " + std::to_string(y0) + "-" + std::to_string(y1 - 1) +
+                            (why.empty() ? "" : ": " + why));
     }
-    float* dst = out.at(0, out_row);
-    for (int dy = 0; dy < factor; ++dy) {
-      const float* src = &rows[static_cast<std::size_t>(dy) * spec.width * nch];
+    for (int y = y0; y < y1; ++y) {
+      float* dst = out.at(0, y / factor);
+      const float* src = &rows[static_cast<std::size_t>(y - y0) * spec.width * nch];
       for (int x = 0; x < spec.width; ++x, src += nch) {
         float c[3];
         for (int k = 0; k < 3; ++k) c[k] = src[nch >= 3 ? k : 0];  // grey expands to RGB

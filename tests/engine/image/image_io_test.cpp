@@ -90,6 +90,30 @@ TEST_F(ImageIo, WideInputsAreDownsampledWhileReading) {
   EXPECT_NEAR(small.at(0, 0)[0], 2.0f + 15.0f / 16, 1e-5);
 }
 
+TEST_F(ImageIo, BlocksOfRowsReadAsOneRead) {
+  // 38 rows (19 at half width) in blocks of 3 and 5 input rows: each last block is a short one.
+  sphere::EquirectImage img(76, 38, 0.0f);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      for (int k = 0; k < 3; ++k) img.at(x, y)[k] = 0.25f * static_cast<float>(k + 1) + 0.01f * x + 0.5f * y;
+  SaveImage(dir_ / "rows.exr", img);
+  for (const int factor : {1, 2}) {
+    LoadOptions whole;
+    whole.max_width = img.width / factor;
+    const auto reference = LoadImage(dir_ / "rows.exr", whole);
+    for (const int block_rows : {3, 5}) {
+      LoadOptions blocks = whole;
+      blocks.read_block_bytes = static_cast<std::size_t>(block_rows) * img.width * 3 * sizeof(float);
+      const auto back = LoadImage(dir_ / "rows.exr", blocks);
+      ASSERT_EQ(back.width, reference.width);
+      ASSERT_EQ(back.height, reference.height);
+      EXPECT_EQ(back.rgb, reference.rgb) << "factor " << factor << ", " << block_rows << " rows a block";
+    }
+  }
+  LoadOptions whole;
+  EXPECT_EQ(LoadImage(dir_ / "rows.exr", whole).rgb, img.rgb);
+}
+
 TEST_F(ImageIo, BadFilesAreOneLineErrorsNamingTheFile) {
   EXPECT_NE(ErrorOf(dir_ / "missing.exr").find("missing.exr: no such file"), std::string::npos);
   std::ofstream(dir_ / "garbage.exr") << "this is not an exr";
