@@ -211,7 +211,10 @@ Rig ParseRig(const std::string& text, const std::filesystem::path& path) {
   for (auto& [id, cam] : by_index) {
     if (id != expected) {
       std::string ids;
-      for (const auto& [i, c] : by_index) ids += (ids.empty() ? "" : ",") + std::to_string(i);
+      for (const auto& [i, c] : by_index) {
+        if (!ids.empty()) ids += ',';  // not `"," + to_string`: GCC 12's -O3 -Wrestrict false positive
+        ids += std::to_string(i);
+      }
       p.Fail("camera " + std::to_string(expected) + " is missing (cameras numbered " + ids + ")");
     }
     rig.cameras.push_back(std::move(cam));

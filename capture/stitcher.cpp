@@ -387,7 +387,12 @@ std::string StitchReport::Summary() const {
   for (std::size_t c = 0; c < gains.size(); ++c) {
     std::snprintf(buf, sizeof buf, "%s%.3f", c ? ", " : "", gains[c]);
     s += buf;
-    if (c < camera_used.size() && !camera_used[c]) unused += (unused.empty() ? "" : ",") + std::to_string(c);
+    if (c < camera_used.size() && !camera_used[c]) {
+      // Appended in two steps: GCC 12 at -O3 takes `"," + std::to_string(c)` for an overlapping
+      // memcpy (-Wrestrict, a false positive) and a Release build with ODVR_WERROR fails.
+      if (!unused.empty()) unused += ',';
+      unused += std::to_string(c);
+    }
   }
   s += "]";
   if (!unused.empty()) s += ", unused cameras (missing or black): " + unused;
