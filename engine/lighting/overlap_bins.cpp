@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <mutex>
+#include <tuple>
 
 #include "engine/core/error.h"
 #include "engine/core/parallel.h"
@@ -56,6 +58,21 @@ int OverlapBins::DepthFor(double lambda, int lighting_levels, double min_retenti
   for (int s = 1; s < lighting_levels; ++s)
     if (lambda / (sphere::Healpix(s).Lambda() + lambda) >= min_retention) depth = s;
   return depth;
+}
+
+std::shared_ptr<const OverlapBins> OverlapBins::Shared(const OverlapBinOptions& options) {
+  constexpr std::size_t kKept = 8;
+  using Key = std::tuple<int, double, double, std::vector<double>>;
+  static std::mutex mutex;
+  static std::vector<std::pair<Key, std::shared_ptr<const OverlapBins>>> kept;  // oldest first
+  const Key key{options.lighting_levels, options.min_retention, options.cutoff, options.bin_lambdas};
+  const std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& [k, bins] : kept)
+    if (k == key) return bins;
+  auto bins = std::make_shared<const OverlapBins>(options);
+  if (kept.size() == kKept) kept.erase(kept.begin());
+  kept.emplace_back(key, bins);
+  return bins;
 }
 
 OverlapBins::OverlapBins(OverlapBinOptions options) : options_(std::move(options)) {

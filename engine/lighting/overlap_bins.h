@@ -23,6 +23,7 @@
 // SRBFs are named by a global index over the levels: g = 4(4^s − 1) + i for nested index i at
 // level s (level 0: 0..11, level 1: 12..59, ...), independent of which SRBFs a frame kept.
 #include <glm/vec3.hpp>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -57,6 +58,10 @@ struct OverlapBinLevel {
 class OverlapBins {
  public:
   explicit OverlapBins(OverlapBinOptions options = {});
+  // The bins for `options`, built once per process and shared (the last few option sets are
+  // kept): they depend on nothing else, and a renderer built each time a test, a bench row or the
+  // player makes one spent half a second on them (37 % of triple_product_renderer_test).
+  static std::shared_ptr<const OverlapBins> Shared(const OverlapBinOptions& options);
 
   // The SRBFs (global indices) that a lobe of sharpness `lambda` around unit `direction` needs.
   std::span<const int> Query(const glm::dvec3& direction, double lambda) const;

@@ -533,7 +533,7 @@ struct TripleProductRenderer::Impl {
   gl::Buffer triangle_buffer{gl::NoCreate};
   std::unique_ptr<visibility::VoxelGrid> cpu_grid;
 
-  std::unique_ptr<lighting::OverlapBins> bins;
+  std::shared_ptr<const lighting::OverlapBins> bins;
   gl::Buffer bin_levels{gl::NoCreate}, bin_begin{gl::NoCreate}, bin_srbfs{gl::NoCreate};
   detail::PreparedLighting lighting;
   gl::Buffer srbf_buffer{gl::NoCreate}, peak_buffer{gl::NoCreate};
@@ -789,7 +789,7 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   bo.lighting_levels = options_.lighting_levels;
   bo.min_retention = options_.overlap_min_retention;
   bo.cutoff = options_.overlap_cutoff;
-  im.bins = std::make_unique<lighting::OverlapBins>(bo);
+  im.bins = lighting::OverlapBins::Shared(bo);
   std::vector<glm::vec4> levels;
   std::vector<int> begin, srbfs;
   for (const auto& l : im.bins->levels()) {

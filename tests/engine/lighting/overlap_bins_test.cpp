@@ -123,6 +123,34 @@ TEST(OverlapBins, SharpLobesNeedFewSrbfsAndReportBesideTheSeed) {
   std::printf("overlap bins: %.1f MiB, built in %.0f ms\n", Bins().bytes() / 1048576.0, Bins().build_ms());
 }
 
+TEST(OverlapBins, SharedBinsAreBuiltOncePerOptionSet) {
+  OverlapBinOptions three;
+  three.lighting_levels = 3;
+  OverlapBinOptions loose = three;
+  loose.cutoff = 1e-2;
+  const auto a = OverlapBins::Shared(three);
+  EXPECT_EQ(OverlapBins::Shared(three), a);
+  const auto b = OverlapBins::Shared(loose);
+  EXPECT_NE(b, a);
+  EXPECT_EQ(b->options().cutoff, 1e-2);
+  // The shared bins answer as bins built on their own do.
+  const OverlapBins own(three);
+  ASSERT_EQ(a->levels().size(), own.levels().size());
+  for (std::size_t l = 0; l < own.levels().size(); ++l) {
+    EXPECT_EQ(a->levels()[l].begin, own.levels()[l].begin);
+    EXPECT_EQ(a->levels()[l].srbfs, own.levels()[l].srbfs);
+  }
+  // More option sets than are kept: the oldest is built again when asked for.
+  for (int k = 1; k <= 8; ++k) {
+    OverlapBinOptions other = three;
+    other.min_retention = 1.0 / (13 + k);
+    OverlapBins::Shared(other);
+  }
+  const auto again = OverlapBins::Shared(three);
+  EXPECT_NE(again, a);
+  EXPECT_EQ(again->levels()[2].srbfs, own.levels()[2].srbfs);
+}
+
 TEST(OverlapBins, BadOptionsAreClearErrors) {
   OverlapBinOptions o;
   o.bin_lambdas = {4, 2};
