@@ -78,6 +78,9 @@ TEST(RunRender, CompositeOnlyGivesTheSameImageAndCounts) {
     EXPECT_EQ(j[0].at("counts").at(count), j[1].at("counts").at(count)) << count;
   EXPECT_GT(j[1].at("counts").at("car_pixels").get<int>(), 100);
   EXPECT_GT(j[1].at("ms").at("readback").get<double>(), 0);
+  // The lighting is built once per repeat too: its steady time and the first build's, both reported.
+  EXPECT_GT(j[1].at("ms").at("lighting").get<double>(), 0);
+  EXPECT_GT(j[1].at("ms").at("first_lighting").get<double>(), 0);
   // Each GPU stage by the GPU's clock too: positive, and within what the wall clock saw of it.
   for (const char* stage : {"voxelize", "gbuffer", "shade", "composite"}) {
     const double gpu = j[1].at("ms").at(std::string("gpu_") + stage).get<double>();
