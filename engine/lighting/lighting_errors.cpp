@@ -31,27 +31,20 @@ sphere::EquirectImage Grid(const sphere::EquirectImage& image, int width) {
 }
 
 // Σ_p I(p) K(d·ω_p) dA_p for each direction d, with kernel K(cos) (zero below `cos_min`).
-// Only the pixels with d·ω_p > cos_min are visited: on a row at latitude θ, d·ω = sin θ d_y +
-// cos θ |d_xz| cos Δφ, so the row is skipped where even Δφ = 0 stays below cos_min and otherwise
-// walked over the columns within acos of the bound (two columns of margin each side, the test
-// per pixel kept), in ascending order as a full row would be: the sums are the same to the last
-// bit. λ = 200 reaches 23° from its axis, so it visits a twenty-fifth of the pixels it did.
+// Only the pixels of the cap d·ω > cos_min are visited (sphere::EquirectCap, the test per pixel
+// kept), a row's columns in ascending order as a full row would be: λ = 200 reaches 23° from its
+// axis, a twenty-fifth of the sphere.
 template <typename Kernel>
 std::vector<glm::dvec3> Convolve(const sphere::EquirectImage& g, const std::vector<glm::dvec3>& dirs, Kernel kernel,
                                  double cos_min) {
   const int w = g.width;
   std::vector<glm::dvec3> pix_dir(g.pixel_count());
-  std::vector<double> da(static_cast<std::size_t>(g.height)), sin_lat(da.size()), cos_lat(da.size());
+  std::vector<double> da(static_cast<std::size_t>(g.height));
   for (int row = 0; row < g.height; ++row) {
     const auto r = static_cast<std::size_t>(row);
     da[r] = sphere::EquirectPixelSolidAngle(row, w, g.height);
     for (int col = 0; col < w; ++col) pix_dir[r * w + col] = sphere::EquirectPixelDirection(col, row, w, g.height);
-    sin_lat[r] = pix_dir[r * w].y;
-    cos_lat[r] = std::hypot(pix_dir[r * w].x, pix_dir[r * w].z);
   }
-  // Slack on the bounds for the rounding of d·ω_p against the closed form.
-  constexpr double kSlack = 1e-9;
-  constexpr int kMarginColumns = 2;
   std::vector<glm::dvec3> out(dirs.size(), glm::dvec3(0));
   // Each direction's sum is one thread's, so the result does not depend on the thread count.
   ThreadPool pool;
@@ -60,45 +53,22 @@ std::vector<glm::dvec3> Convolve(const sphere::EquirectImage& g, const std::vect
       [&](long begin, long end) {
         for (auto i = static_cast<std::size_t>(begin); i < static_cast<std::size_t>(end); ++i) {
           const glm::dvec3 d = dirs[i];
-          const double d_xz = std::hypot(d.x, d.z);
-          // The column (as a continuous pixel coordinate) whose longitude is d's.
-          const double d_col = sphere::EquirectPixel(d, w, g.height).x - 0.5;
+          const sphere::EquirectCap cap(d, cos_min, w, g.height);
           glm::dvec3 acc(0);
-          for (int row = 0; row < g.height; ++row) {
+          for (int row = cap.first_row(); row <= cap.last_row(); ++row) {
+            const auto [start, count] = cap.Columns(row);
             const auto r = static_cast<std::size_t>(row);
-            const double base = sin_lat[r] * d.y, amp = cos_lat[r] * d_xz;
-            if (base + amp < cos_min - kSlack) continue;
-            int segments[2][2] = {{0, w - 1}, {0, -1}};
-            const double t = amp > 0 ? (cos_min - kSlack - base) / amp : -2;
-            if (t > -1) {
-              const double half = std::acos(std::min(t, 1.0)) * w / (2 * sphere::kPi) + kMarginColumns;
-              if (2 * half + 3 < w) {  // the two segments of a wrapped window never meet
-                const auto lo = static_cast<int>(std::floor(d_col - half));
-                const auto hi = static_cast<int>(std::ceil(d_col + half));
-                if (lo < 0) {
-                  segments[0][1] = hi;
-                  segments[1][0] = lo + w;
-                  segments[1][1] = w - 1;
-                } else if (hi >= w) {
-                  segments[0][1] = hi - w;
-                  segments[1][0] = lo;
-                  segments[1][1] = w - 1;
-                } else {
-                  segments[0][0] = lo;
-                  segments[0][1] = hi;
-                }
-              }
-            }
             glm::dvec3 row_acc(0);
-            for (const auto& [first, last] : segments) {
-              for (int col = first; col <= last; ++col) {
-                const std::size_t p = r * w + col;
-                const double c = glm::dot(d, pix_dir[p]);
-                if (c <= cos_min) continue;
-                const float* v = g.at(col, row);
-                row_acc += kernel(c) * glm::dvec3(v[0], v[1], v[2]);
-              }
-            }
+            const auto add = [&](int col) {
+              const double c = glm::dot(d, pix_dir[r * w + col]);
+              if (c <= cos_min) return;
+              const float* v = g.at(col, row);
+              row_acc += kernel(c) * glm::dvec3(v[0], v[1], v[2]);
+            };
+            // The span in ascending columns: those past the seam (from 0) first.
+            const int first = (start % w + w) % w;
+            for (int col = 0; col < first + count - w; ++col) add(col);
+            for (int col = first; col < std::min(w, first + count); ++col) add(col);
             acc += row_acc * da[r];
           }
           out[i] = acc;

@@ -404,33 +404,16 @@ LevelTables BuildLevelTables(int level, int width, int height, double region_cut
   // columns within the cap's longitude half-width (all of them near a pole).
   const int n = hp.size();
   const double cos_max = 1.0 + std::log(region_cutoff) / t.lambda;
-  const double theta = cos_max <= -1 ? sphere::kPi : std::acos(cos_max);
   std::vector<std::vector<std::pair<int, float>>> caps(static_cast<std::size_t>(n));
   pool->ParallelFor(
       n,
       [&](long begin, long end) {
         for (long c = begin; c < end; ++c) {
           const glm::dvec3 axis = hp.centre(static_cast<int>(c));
-          const double lat_c = std::asin(std::clamp(axis.y, -1.0, 1.0));
-          const double col_c = sphere::EquirectPixel(axis, width, height).x;
-          const int row0 =
-              std::max(0, static_cast<int>(std::floor((sphere::kPi / 2 - lat_c - theta) / sphere::kPi * height)));
-          const int row1 = std::min(
-              height - 1, static_cast<int>(std::ceil((sphere::kPi / 2 - lat_c + theta) / sphere::kPi * height)));
+          const sphere::EquirectCap region(axis, cos_max, width, height);
           auto& cap = caps[static_cast<std::size_t>(c)];
-          for (int row = row0; row <= row1; ++row) {
-            const double lat = sphere::kPi / 2 - sphere::kPi * (row + 0.5) / height;
-            const double denom = std::cos(lat) * std::cos(lat_c);
-            double half = sphere::kPi;
-            if (denom > 1e-12) {
-              const double x = (std::cos(theta) - std::sin(lat) * std::sin(lat_c)) / denom;
-              if (x >= 1) continue;
-              if (x > -1) half = std::acos(x);
-            }
-            int count =
-                half >= sphere::kPi ? width : 2 * static_cast<int>(std::ceil(half / (2 * sphere::kPi) * width)) + 3;
-            count = std::min(count, width);
-            const int start = count == width ? 0 : static_cast<int>(std::floor(col_c)) - count / 2;
+          for (int row = region.first_row(); row <= region.last_row(); ++row) {
+            const auto [start, count] = region.Columns(row);
             for (int k = 0; k < count; ++k) {
               const int col = ((start + k) % width + width) % width;
               const double g =

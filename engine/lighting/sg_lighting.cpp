@@ -70,27 +70,12 @@ void AddSgToImage(const RgbSg& g, sphere::EquirectImage* image, double cutoff) {
     return;
   }
   // Cap: exp(λ(cos θ − 1)) > cutoff  ⇔  cos θ > 1 + ln(cutoff)/λ.
-  const double cos_max = 1.0 + std::log(cutoff) / g.lambda;
-  const double theta = cos_max <= -1 ? sphere::kPi : std::acos(cos_max);
-  const glm::dvec2 c = sphere::EquirectPixel(g.axis, w, h);
-  const double lat_c = std::asin(std::clamp(g.axis.y, -1.0, 1.0));
-  const int row0 = std::max(0, static_cast<int>(std::floor((sphere::kPi / 2 - (lat_c + theta)) / sphere::kPi * h)));
-  const int row1 = std::min(h - 1, static_cast<int>(std::ceil((sphere::kPi / 2 - (lat_c - theta)) / sphere::kPi * h)));
+  const sphere::EquirectCap cap(g.axis, 1.0 + std::log(cutoff) / g.lambda, w, h);
   const std::vector<glm::dvec2>& longitudes = ColumnLongitudes(w);
-  for (int row = row0; row <= row1; ++row) {
+  for (int row = cap.first_row(); row <= cap.last_row(); ++row) {
     const double lat = sphere::kPi / 2 - sphere::kPi * (row + 0.5) / h;
     const double cos_lat = std::cos(lat), sin_lat = std::sin(lat);
-    // Half-width in longitude of the cap at this latitude (all columns near a pole).
-    const double denom = cos_lat * std::cos(lat_c);
-    double half = sphere::kPi;
-    if (denom > 1e-12) {
-      const double x = (std::cos(theta) - sin_lat * std::sin(lat_c)) / denom;
-      if (x > 1) continue;
-      if (x > -1) half = std::acos(x);
-    }
-    int n = half >= sphere::kPi ? w : static_cast<int>(std::ceil(half / (2 * sphere::kPi) * w)) * 2 + 3;
-    n = std::min(n, w);
-    const int start = n == w ? 0 : static_cast<int>(std::floor(c.x)) - n / 2;
+    const auto [start, n] = cap.Columns(row);
     for (int k = 0; k < n; ++k) {
       const int col = ((start + k) % w + w) % w;
       const glm::dvec2 lon = longitudes[static_cast<std::size_t>(col)];

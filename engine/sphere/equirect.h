@@ -34,4 +34,23 @@ glm::dvec2 EquirectPixel(const glm::dvec3& direction, int width, int height);
 // Solid angle of any pixel in row `row` (steradians).
 double EquirectPixelSolidAngle(int row, int width, int height);
 
+// The pixels of a width x height grid that can lie in the cap {d : d·axis > cos_max} (axis
+// unit): rows first_row..last_row and, in each, `count` columns from `start` (wrapping: start
+// may be negative; count 0 where the row misses the cap, the whole row near a pole). A superset
+// by a column or more each side: callers test each pixel.
+class EquirectCap {
+ public:
+  EquirectCap(const glm::dvec3& axis, double cos_max, int width, int height);
+  int first_row() const { return first_row_; }
+  int last_row() const { return last_row_; }
+  struct Span {
+    int start = 0, count = 0;
+  };
+  Span Columns(int row) const;
+
+ private:
+  int width_, height_, first_row_, last_row_;
+  double sin_lat_c_, cos_lat_c_, cos_theta_, col_c_;
+};
+
 }  // namespace odvr::sphere
