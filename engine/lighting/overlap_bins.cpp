@@ -5,7 +5,6 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <mutex>
-#include <tuple>
 
 #include "engine/core/error.h"
 #include "engine/core/parallel.h"
@@ -62,16 +61,14 @@ int OverlapBins::DepthFor(double lambda, int lighting_levels, double min_retenti
 
 std::shared_ptr<const OverlapBins> OverlapBins::Shared(const OverlapBinOptions& options) {
   constexpr std::size_t kKept = 8;
-  using Key = std::tuple<int, double, double, std::vector<double>>;
   static std::mutex mutex;
-  static std::vector<std::pair<Key, std::shared_ptr<const OverlapBins>>> kept;  // oldest first
-  const Key key{options.lighting_levels, options.min_retention, options.cutoff, options.bin_lambdas};
+  static std::vector<std::shared_ptr<const OverlapBins>> kept;  // oldest first
   const std::lock_guard<std::mutex> lock(mutex);
-  for (const auto& [k, bins] : kept)
-    if (k == key) return bins;
+  for (const auto& bins : kept)
+    if (bins->options() == options) return bins;
   auto bins = std::make_shared<const OverlapBins>(options);
   if (kept.size() == kKept) kept.erase(kept.begin());
-  kept.emplace_back(key, bins);
+  kept.push_back(bins);
   return bins;
 }
 

@@ -35,6 +35,7 @@ struct OverlapBinOptions {
   double cutoff = 1e-3;             // overlap rule, relative to the aligned product integral
   std::vector<double> bin_lambdas = {0.5, 2, 4, 16, 32, 128, 256, 512};
   void Check() const;  // throws odvr::Error
+  bool operator==(const OverlapBinOptions&) const = default;
 };
 
 inline int GlobalSrbfIndex(int level, int index) { return 4 * ((1 << (2 * level)) - 1) + index; }
