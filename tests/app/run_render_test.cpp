@@ -81,13 +81,21 @@ TEST(RunRender, CompositeOnlyGivesTheSameImageAndCounts) {
   // The lighting is built once per repeat too: its steady time and the first build's, both reported.
   EXPECT_GT(j[1].at("ms").at("lighting").get<double>(), 0);
   EXPECT_GT(j[1].at("ms").at("first_lighting").get<double>(), 0);
-  // Each GPU stage by the GPU's clock too: positive, and within what the wall clock saw of it.
+  // Each GPU stage by the GPU's clock too: positive, and inside the render call the wall clock saw.
+  // Not against each stage's own wall time: a stage's timestamp is taken just after its wall clock
+  // stops, and a busy 2-core CI machine preempted there once (gbuffer 2.7 ms by the GPU, 1.4 by the
+  // wall). The four stamps all fall inside the render call in every repeat, so their spans do too,
+  // and so do the medians (2 steady repeats: a median is their mean, and the sum of means is the
+  // mean of sums).
+  const double total = j[1].at("ms").at("render_total").get<double>();
+  double gpu_sum = 0;
   for (const char* stage : {"voxelize", "gbuffer", "shade", "composite"}) {
     const double gpu = j[1].at("ms").at(std::string("gpu_") + stage).get<double>();
-    const double wall = j[1].at("ms").at(stage).get<double>();
     EXPECT_GT(gpu, 0) << stage;
-    EXPECT_LE(gpu, 1.1 * wall + 1.0) << stage;
+    EXPECT_LE(gpu, total) << stage;
+    gpu_sum += gpu;
   }
+  EXPECT_LE(gpu_sum, 1.001 * total);  // two clocks: a part in a thousand for their rates
   const CliRun bad = RunOdvr("render " + kArgs + " --size 64x36 --composite-only --out " + (d.dir / "x.png").string() +
                              " --layers " + (d.dir / "layers").string());
   EXPECT_NE(bad.exit_code, 0);
