@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -44,8 +45,10 @@ struct BenchRenderOptions {
   std::vector<int> mc_voxels = {128};  // the Monte-Carlo rows' voxel resolutions
   unsigned mc_seed = 1;
   bool mc_exact = false;  // also Monte-Carlo rows with ray-traced visibility ("mc-exact")
-  // Each k > 1: the default configuration's SG row and the Monte-Carlo rows again with k×k shaded
-  // samples per pixel (RenderOptions::supersample), MC at samples/k² each (the same rays per pixel).
+  // Each k > 1: the default configuration's SG row, the sweep's finest configuration (the most
+  // levels, cones and voxels swept; at the largest contrast) and the Monte-Carlo rows again with k×k
+  // shaded samples per pixel (RenderOptions::supersample), MC at samples/k² each (the same rays per
+  // pixel).
   std::vector<int> supersample = {1, 2};
   // And for each k > 1, one SG row per contrast (RenderOptions::supersample_contrast; 0: every
   // sample of every pixel).
@@ -457,6 +460,22 @@ bool IsDefault(const Row& r, const std::string& lobes, int supersample = 1, doub
 // The lobe mode the defaults use (RenderOptions{}.lobes), as the rows name it.
 std::string DefaultLobes() { return LobeName(render::RenderOptions{}.lobes); }
 
+// The sweep's finest configuration for a reference: the most levels, cones and voxels its 1×1
+// rows (default lobes) were rendered with, each the largest of its axis — what the renderer gives
+// when asked to model the most, beside the default. Chosen by the sweep's extent, not by any
+// row's error against the reference. {0, 0, 0} without such a row.
+using Config = std::array<int, 3>;  // levels, cones, voxels
+Config FinestConfig(const std::vector<Row>& rows, const std::string& reference) {
+  Config finest = {0, 0, 0};
+  const std::string lobes = DefaultLobes();
+  for (const Row& r : rows)
+    if (r.reference == reference && r.method == "sg" && r.lobes == lobes && r.supersample == 1 && r.car_pixels > 0)
+      finest = {std::max(finest[0], r.levels), std::max(finest[1], r.cones), std::max(finest[2], r.voxels)};
+  return finest;
+}
+
+bool HasConfig(const Row& r, const Config& c) { return r.levels == c[0] && r.cones == c[1] && r.voxels == c[2]; }
+
 // MC shade ms at a given error, interpolated in log-log between the two MC rows around it;
 // `bound` is set when the error lies outside the rows (then the nearest row's ms, a bound).
 double McMsAtError(const std::vector<const Row*>& mc, double error, std::string* bound) {
@@ -523,20 +542,47 @@ std::string Targets(const std::vector<Row>& rows) {
   double contrast = 0;
   for (const auto& r : rows)
     if (r.car_pixels > 0 && r.supersample == supersample) contrast = std::max(contrast, r.contrast);
-  std::ostringstream ss_md;
+  std::ostringstream ss_md, fine_md;
   int met = 0, total = 0, fast = 0, fast_total = 0, fast_at_mc = 0, ss_met = 0, ss_total = 0, ss_fast = 0,
-      ss_fast_total = 0;
+      ss_fast_total = 0, fine_met = 0, fine_total = 0, fine_fast = 0, fine_fast_total = 0;
+  bool finer_than_default = false;
+  const Config default_config = {kDefaultLevels, kDefaultCones, kDefaultVoxels};
   for (const auto& name : refs) {
-    const Row *sg = nullptr, *sg_ss = nullptr, *sg_every = nullptr;
+    const Row *sg = nullptr, *sg_ss = nullptr, *sg_every = nullptr, *fine = nullptr, *fine_ss = nullptr;
     std::vector<const Row*> mc, mc_ss, sg_rows;
+    const Config finest = FinestConfig(rows, name);
     for (const auto& r : rows) {
       if (r.reference != name || r.car_pixels == 0) continue;
       if (IsDefault(r, lobes)) sg = &r;
       if (supersample > 1 && IsDefault(r, lobes, supersample, contrast)) sg_ss = &r;
       if (supersample > 1 && contrast > 0 && IsDefault(r, lobes, supersample, 0)) sg_every = &r;
+      if (r.method == "sg" && r.lobes == lobes && HasConfig(r, finest)) {
+        if (r.supersample == 1) fine = &r;
+        if (supersample > 1 && r.supersample == supersample && r.contrast == contrast) fine_ss = &r;
+      }
       if (r.method == "sg") sg_rows.push_back(&r);
       if (r.method == "mc" && r.voxels == kDefaultVoxels && r.supersample == 1) mc.push_back(&r);
       if (r.method == "mc" && r.voxels == kDefaultVoxels && r.supersample == supersample) mc_ss.push_back(&r);
+    }
+    // The finest configuration at the most samples per pixel there are rows for.
+    if (const Row* judged = supersample > 1 ? fine_ss : fine) {
+      finer_than_default |= finest != default_config;
+      ++fine_total;
+      fine_met += judged->mean_rel <= 0.10;
+      std::string bound;
+      const double mc_ms = McMsAtError(supersample > 1 ? mc_ss : mc, judged->mean_rel, &bound);
+      std::string speed = "–";
+      if (mc_ms > 0) {
+        ++fine_fast_total;
+        fine_fast += mc_ms / judged->shade_ms >= 20 && bound != "<";
+        speed = bound + F(mc_ms / judged->shade_ms, 1) + "×";
+      }
+      fine_md << "| " << name << " | " << finest[0] << ", " << finest[1] << ", " << finest[2] << "³"
+              << (finest == default_config ? " (the default)" : "") << " | "
+              << (fine ? F(fine->mean_rel) + ", " + F(fine->shade_ms, 0) : "–") << " | "
+              << (supersample > 1 ? F(judged->mean_rel) + ", " + F(judged->shade_ms, 0) + " | " : "")
+              << (judged->mean_rel <= 0.10 ? "yes" : "no") << " | " << F(judged->ssim) << " | "
+              << (mc_ms > 0 ? bound + F(mc_ms, 0) : "–") << " | " << speed << " |\n";
     }
     if (sg_ss) {
       ++ss_total;
@@ -604,6 +650,20 @@ std::string Targets(const std::vector<Row>& rows) {
        << ss_md.str() << "\n**Mean relative error ≤ 10 % on car pixels, supersampled:** " << ss_met << " of "
        << ss_total << " references. **≥ 20× faster than MC at equal error** (MC supersampled alike): " << ss_fast
        << " of " << ss_fast_total << ".\n";
+  if (finer_than_default) {
+    const std::string samples = supersample > 1
+                                    ? fmt::format("{}×{}", supersample, supersample) +
+                                          (contrast > 0 ? fmt::format(" (contrast {})", contrast) : std::string())
+                                    : std::string("1×1");
+    md << "\n**The sweep's finest configuration**, per reference the most levels, cones and voxels of its sweep "
+          "(its extent, not a choice by error), at "
+       << samples << ": what the renderer gives when a scene is given the most it models.\n\n"
+       << "| reference | levels, cones, voxels | 1×1: error, ms | "
+       << (supersample > 1 ? samples + ": error, ms | " : "") << "≤ 10 % | SSIM | MC ms at that error | speed-up |\n"
+       << (supersample > 1 ? "|---|---|---|---|---|---|---|---|\n" : "|---|---|---|---|---|---|---|\n") << fine_md.str()
+       << "\n**Mean relative error ≤ 10 % on car pixels, finest configuration:** " << fine_met << " of " << fine_total
+       << " references. **≥ 20× faster than MC at equal error:** " << fine_fast << " of " << fine_fast_total << ".\n";
+  }
   for (const auto& r : rows)
     if (r.car_pixels == 0 && r.method == "sg")
       md << "\n**" << r.width << "×" << r.height << "** (" << r.reference << ", default configuration): shade "
@@ -749,11 +809,24 @@ int RunBenchRender(BenchRenderOptions o) {
           rows.push_back(
               RenderRow(base, ref, method, kDefaultLevels, 1, v, n, modes[0], 0, 0, o.mc_seed, o.images_dir));
     }
+    // The sweep's finest configuration (FinestConfig), at 1×1 unless swept already, and at each k > 1
+    // at the largest contrast, as the report judges it.
+    const auto largest = [](const auto& v, auto otherwise) {
+      return v.empty() ? otherwise : *std::max_element(v.begin(), v.end());
+    };
+    const Config finest = {largest(o.levels, kDefaultLevels), largest(o.cones, kDefaultCones),
+                           largest(o.voxels, kDefaultVoxels)};
+    const bool finest_is_default = finest == Config{kDefaultLevels, kDefaultCones, kDefaultVoxels};
+    if (std::find(configs.begin(), configs.end(), finest) == configs.end())
+      rows.push_back(RenderRow(base, ref, "sg", finest[0], finest[1], finest[2], 0, modes[0], 0, 0, 1, o.images_dir));
     for (int k : o.supersample) {
       if (k == 1) continue;
       for (double c : o.supersample_contrast)
         rows.push_back(RenderRow(base, ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, modes[0], 0, 0, 1,
                                  o.images_dir, k, c));
+      if (!finest_is_default && !o.supersample_contrast.empty())
+        rows.push_back(RenderRow(base, ref, "sg", finest[0], finest[1], finest[2], 0, modes[0], 0, 0, 1, o.images_dir,
+                                 k, largest(o.supersample_contrast, 0.0)));
       for (int n : o.mc_samples)
         if (n >= k * k)
           rows.push_back(RenderRow(base, ref, "mc", kDefaultLevels, 1, kDefaultVoxels, n, modes[0], 0, 0, o.mc_seed,
@@ -789,7 +862,8 @@ CommandFn AddBenchRender(CLI::App* sub) {
   sub->add_flag("--mc-exact", o->mc_exact,
                 "Also Monte-Carlo rows with shadow rays against the triangles (method mc-exact): what the voxels cost");
   sub->add_option("--supersample", o->supersample,
-                  "Shaded samples per pixel along each axis: 1 and, per k > 1, the default SG row and MC rows again")
+                  "Shaded samples per pixel along each axis: 1 and, per k > 1, the default SG row, the sweep's finest "
+                  "configuration and the MC rows again")
       ->delimiter(',')
       ->check(CLI::Range(1, render::kMaxSupersample));
   sub->add_option("--supersample-contrast", o->supersample_contrast,

@@ -54,13 +54,27 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
     tsv << "car\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.12\t0.1\t0.9\t0.84\t0.05\t100\t1000\t6\t16\t2\t0.1\n";
     tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t4\t0.36\t0.3\t0.9\t0.3\t0.1\t100\t1000\t100\t120\t2\n";
     tsv << "car\tmc\texact\t320\t180\t0\t0\t128\t64\t0.04\t0.04\t0.9\t0.6\t0.05\t100\t1000\t900\t920\t2\n";
+    // A reference the default configuration leaves above 10 % and the sweep's finest (the most
+    // levels, cones and voxels its 1×1 rows were rendered with: 5, 19, 256³, whatever their errors)
+    // takes below it at 2×2 (contrast 0.1, the largest), under every supersampled MC row: a bound.
+    tsv << "glossy\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.12\t0.1\t0.98\t0.9\t-1\t0\t800\t150\t160\n";
+    tsv << "glossy\tsg\tsplit-axis\t320\t180\t5\t19\t128\t0\t0.11\t0.1\t0.98\t0.9\t-1\t0\t800\t200\t210\n";
+    tsv << "glossy\tsg\tsplit-axis\t320\t180\t5\t7\t256\t0\t0.115\t0.1\t0.98\t0.9\t-1\t0\t800\t180\t190\n";
+    tsv << "glossy\tsg\tsplit-axis\t320\t180\t5\t19\t256\t0\t0.105\t0.1\t0.98\t0.9\t-1\t0\t800\t300\t310\n";
+    tsv << "glossy\tmc\texact\t320\t180\t0\t0\t128\t4\t0.5\t0.5\t1.0\t0.2\t-1\t0\t800\t100\t110\n";
+    tsv << "glossy\tmc\texact\t320\t180\t0\t0\t128\t64\t0.2\t0.2\t1.0\t0.5\t-1\t0\t800\t2000\t2010\n";
+    tsv << "glossy\tsg\tsplit-axis\t320\t180\t5\t7\t128\t0\t0.104\t0.1\t0.99\t0.95\t-1\t0\t800\t600\t610\t2\t0.1\n";
+    tsv << "glossy\tsg\tsplit-axis\t320\t180\t5\t19\t256\t0\t0.098\t0.09\t0.99\t0.96\t-1\t0\t800\t1000\t1010\t2\t0."
+           "1\n";
+    tsv << "glossy\tmc\texact\t320\t180\t0\t0\t128\t4\t0.5\t0.5\t1.0\t0.2\t-1\t0\t800\t100\t110\t2\n";
+    tsv << "glossy\tmc\texact\t320\t180\t0\t0\t128\t64\t0.2\t0.2\t1.0\t0.5\t-1\t0\t800\t2000\t2010\t2\n";
     // The timing-only row at 1280×720: 250 ms in all is 4 fps; as the window player renders it
     // (nothing read back), 40 ms is 25 fps.
     tsv << "car\tsg\tsplit-axis\t1280\t720\t5\t7\t128\t0\t0\t0\t0\t0\t-1\t0\t0\t200\t250\t1\t0\t30\t40\n";
   }
   const CliRun r = RunOdvr("bench render --report-only --out " + d.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("16 rows"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("26 rows"), std::string::npos) << r.out;
   const std::string md = ReadText(d.dir / "render.md");
   EXPECT_NE(md.find("a test machine"), std::string::npos);
   // car: no SG row reaches MC's best error (0.1 at 16 samples); paint: MC's best is 0.2 at 2000
@@ -73,8 +87,8 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
                     "7 cones, 128³, 2×2 c 0.1: 0.150, 30 | 66.7× |"),
             std::string::npos)
       << md;
-  EXPECT_NE(md.find("≤ 10 % on car pixels:** 1 of 2"), std::string::npos) << md;
-  EXPECT_NE(md.find("at equal error:** 1 of 2 at the default configuration's error; 1 of 2 at MC's best error"),
+  EXPECT_NE(md.find("≤ 10 % on car pixels:** 1 of 3"), std::string::npos) << md;
+  EXPECT_NE(md.find("at equal error:** 1 of 3 at the default configuration's error; 1 of 3 at MC's best error"),
             std::string::npos)
       << md;
   EXPECT_NE(md.find("= 4.00 fps"), std::string::npos) << md;
@@ -86,8 +100,22 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
       << md;
   EXPECT_NE(md.find("contrast 0.1"), std::string::npos) << md;
   EXPECT_NE(md.find("| paint | 0.080, 50 | – | 0.150 | no | 0.900 | 30.0 | – | – | – |"), std::string::npos) << md;
-  EXPECT_NE(md.find("supersampled:** 0 of 2 references. **≥ 20× faster than MC at equal error** (MC supersampled "
-                    "alike): 1 of 1"),
+  EXPECT_NE(md.find("supersampled:** 0 of 3 references. **≥ 20× faster than MC at equal error** (MC supersampled "
+                    "alike): 1 of 2"),
+            std::string::npos)
+      << md;
+  // The sweep's finest configuration per reference at 2×2 (contrast 0.1): car's and paint's are
+  // the default (their rows above), glossy's its 5 levels, 19 cones and 256³ at 1×1 and 2×2.
+  EXPECT_NE(md.find("| car | 5, 7, 128³ (the default) | 0.200, 100 | 0.120, 6 | no | 0.840 | 300 | 50.0× |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| paint | 5, 7, 128³ (the default) | 0.080, 50 | 0.150, 30 | no | 0.900 | – | – |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| glossy | 5, 19, 256³ | 0.105, 300 | 0.098, 1000 | yes | 0.960 | >2000 | >2.0× |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("finest configuration:** 1 of 3 references. **≥ 20× faster than MC at equal error:** 1 of 2"),
             std::string::npos)
       << md;
   // The plot is drawn, and its script names its files relative to itself (a copy in
