@@ -95,13 +95,20 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
   EXPECT_NE(md.find("shade 30.0 ms, total 40.0 ms = 25.00 fps"), std::string::npos) << md;
   // The supersampled rows: their own table, the adaptive row against the supersampled MC rows only,
   // beside the 1×1 and every-sample rows.
-  EXPECT_NE(md.find("| car | 0.200, 100 | 0.120, 10 | 0.120 | no | 0.840 | 6.0 | 300 | 50.0× | 0.040, 900 |"),
+  EXPECT_NE(md.find("| car | 0.200, 100 | 0.120, 10 | 0.120 | no | 0.840 | 6.0 | 300 | 50.0× | 0.040, 900 | – | – |"),
+            std::string::npos)
+      << md;
+  // At supersampled MC's best error (glossy: 0.2 in 2000 ms) the cheapest SG row as accurate is
+  // any row, here the 1×1 default (0.12 in 150 ms): 13.3×.
+  EXPECT_NE(md.find("| glossy | 0.120, 150 | – | 0.104 | no | 0.950 | 600.0 | >2000 | >3.3× | 0.200, 2000 | "
+                    "split-axis, 5 levels, 7 cones, 128³: 0.120, 150 | 13.3× |"),
             std::string::npos)
       << md;
   EXPECT_NE(md.find("contrast 0.1"), std::string::npos) << md;
-  EXPECT_NE(md.find("| paint | 0.080, 50 | – | 0.150 | no | 0.900 | 30.0 | – | – | – |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| paint | 0.080, 50 | – | 0.150 | no | 0.900 | 30.0 | – | – | – | – | – |"), std::string::npos)
+      << md;
   EXPECT_NE(md.find("supersampled:** 0 of 3 references. **≥ 20× faster than MC at equal error** (MC supersampled "
-                    "alike): 1 of 2"),
+                    "alike): 1 of 2 at the supersampled row's error; 0 of 2 at MC's best error"),
             std::string::npos)
       << md;
   // The sweep's finest configuration per reference at 2×2 (contrast 0.1): car's and paint's are
