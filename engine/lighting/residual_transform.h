@@ -174,6 +174,23 @@ struct LevelTables {
   std::size_t bytes() const;
 };
 
+// A level's projection of its own reconstruction, M = P∘R on its working grid (P: eq. 4.17's
+// weighted mean with the transform's normalization; R: Σ_c μ_c G_c): row c holds, for every SRBF
+// c' whose cap meets c's, what P_c takes from G_c'. The refitting sweeps need
+// P(r − R(μ)) = P(r) − Mμ, so with M they run on the level's amplitudes (a few dozen entries per
+// SRBF) instead of reconstructing and projecting the whole grid once per sweep.
+struct LevelGram {
+  std::vector<int> row_begin, column;  // CSR: row c's entries [row_begin[c], row_begin[c + 1]), columns ascending
+  std::vector<float> value;
+  // out_c = projected_c − Σ_c' M_cc' μ_c' (sums in double).
+  void Residual(const std::vector<glm::vec3>& projected, const std::vector<glm::vec3>& mu, std::vector<glm::vec3>* out,
+                ThreadPool* pool) const;
+  std::size_t bytes() const;
+};
+
+// M of `t` (its own grid) for `normalization`, from its by-SRBF and by-pixel lists.
+LevelGram BuildLevelGram(const LevelTables& t, Normalization normalization, ThreadPool* pool);
+
 class ResidualTransform {
  public:
   explicit ResidualTransform(ResidualTransformOptions options = {});
@@ -188,6 +205,8 @@ class ResidualTransform {
   // Working grid of level s for an input of the given size.
   std::pair<int, int> GridOf(int level, int input_width, int input_height) const;
   const LevelTables& Tables(int level, int width, int height);
+  // Tables(level, width, height)'s LevelGram under the transform's normalization, built once.
+  const LevelGram& Gram(int level, int width, int height);
   // The transform's threads, for the builder's other per-frame passes.
   ThreadPool* pool() { return pool_.get(); }
 
@@ -201,6 +220,7 @@ class ResidualTransform {
   std::unique_ptr<ThreadPool> pool_;
   std::mutex mutex_;
   std::map<std::tuple<int, int, int>, std::unique_ptr<LevelTables>> tables_;
+  std::map<std::tuple<int, int, int>, std::unique_ptr<LevelGram>> grams_;
   std::mutex correction_mutex_;
   sphere::EquirectImage correction_residue_;
   // Run's images, kept across frames (see CorrectCoarserLevels).

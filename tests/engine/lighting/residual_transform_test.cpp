@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <tuple>
 
 #include "engine/core/error.h"
 #include "engine/image/image_io.h"
@@ -398,6 +400,65 @@ TEST(ResidualTransform, OverlapListsCoverEveryPixelAndEverySrbf) {
     share[static_cast<std::size_t>(t.srbf_pixel[e])] += t.srbf_partition_weight[e];
   for (int row = 0; row < 64; ++row)
     EXPECT_NEAR(share[static_cast<std::size_t>(row) * 128], sphere::EquirectPixelSolidAngle(row, 128, 64), 1e-9);
+}
+
+// The refitting sweeps run on the amplitudes (P(r − R(μ)) = P(r) − Mμ), so M must be the
+// projection of the reconstruction: here each written out from the overlap lists for a random μ
+// (R through the by-pixel lists, P through the by-SRBF ones with each normalization's weights), on
+// a broad level and on level 4's own grid.
+TEST(ResidualTransform, GramIsTheProjectionOfTheReconstruction) {
+  ThreadPool pool(2);
+  for (const auto& [level, width, cutoff] : {std::tuple{2, 128, 1e-5}, std::tuple{4, 512, 1e-3}}) {
+    const int height = width / 2;
+    const LevelTables t = BuildLevelTables(level, width, height, cutoff, &pool);
+    const std::size_t n = t.inv_weight_sum.size();
+    std::vector<glm::vec3> mu(n);
+    unsigned state = 12345;
+    const auto uniform = [&] {
+      state = state * 1664525u + 1013904223u;
+      return static_cast<float>(state >> 8) / 16777216.f - 0.3f;  // [-0.3, 0.7): both signs
+    };
+    for (glm::vec3& m : mu) m = {uniform(), uniform(), uniform()};
+    // R(μ) per pixel.
+    std::vector<glm::dvec3> image(static_cast<std::size_t>(width) * height, glm::dvec3(0));
+    for (std::size_t p = 0; p < image.size(); ++p)
+      for (int k = t.pixel_begin[p]; k < t.pixel_begin[p + 1]; ++k)
+        image[p] += static_cast<double>(t.pixel_g[static_cast<std::size_t>(k)]) *
+                    glm::dvec3(mu[static_cast<std::size_t>(t.pixel_srbf[static_cast<std::size_t>(k)])]);
+    for (const Normalization normalization :
+         {Normalization::kPartition, Normalization::kLocalSum, Normalization::kNone}) {
+      const LevelGram gram = BuildLevelGram(t, normalization, &pool);
+      const std::vector<float>& weights =
+          normalization == Normalization::kPartition ? t.srbf_partition_weight : t.srbf_weight;
+      std::vector<glm::vec3> minus_m_mu;
+      gram.Residual(std::vector<glm::vec3>(n, glm::vec3(0)), mu, &minus_m_mu, &pool);
+      double largest = 0, worst = 0;
+      for (std::size_t c = 0; c < n; ++c) {
+        glm::dvec3 projected(0);
+        for (int e = t.srbf_begin[c]; e < t.srbf_begin[c + 1]; ++e)
+          projected += static_cast<double>(weights[static_cast<std::size_t>(e)]) *
+                       image[static_cast<std::size_t>(t.srbf_pixel[static_cast<std::size_t>(e)])];
+        projected *= t.inv_weight_sum[c];
+        if (normalization == Normalization::kLocalSum) projected /= t.local_sum[c];
+        for (int ch = 0; ch < 3; ++ch) {
+          largest = std::max(largest, std::abs(projected[ch]));
+          worst = std::max(worst, std::abs(projected[ch] + minus_m_mu[c][ch]));
+        }
+      }
+      SCOPED_TRACE("level " + std::to_string(level) + ", normalization " +
+                   std::to_string(static_cast<int>(normalization)));
+      EXPECT_GT(largest, 0.1);
+      EXPECT_LT(worst, 1e-5 * largest);  // float storage of M and of the result
+      // Each row holds the SRBFs whose caps meet: itself among them, and far fewer than all.
+      for (std::size_t c = 0; c < n; ++c) {
+        const auto first = gram.column.begin() + gram.row_begin[c], last = gram.column.begin() + gram.row_begin[c + 1];
+        ASSERT_TRUE(std::binary_search(first, last, static_cast<int>(c))) << c;
+      }
+      if (level == 4) {
+        EXPECT_LT(gram.column.size(), 64 * n);
+      }
+    }
+  }
 }
 
 }  // namespace
