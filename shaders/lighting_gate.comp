@@ -9,7 +9,7 @@
 layout(local_size_x = 1) in;
 
 layout(std430, binding = 0) readonly buffer Totals { double totals[]; };
-layout(std430, binding = 1) readonly buffer Flags { uint flags[]; };  // per level: kept, dropped
+layout(std430, binding = 1) readonly buffer Flags { uint flags[]; };  // per level: SRBFs kept
 layout(std430, binding = 9) buffer Gate {
   uint gate_closed;
   uint levels_run;  // levels that reached this pass with the gate open
@@ -26,6 +26,6 @@ void main() {
   double before_abs = totals[8 * uBeforeSlot + 3], before_sq = totals[8 * uBeforeSlot + 4];
   double after_abs = totals[8 * uAfterSlot + 3], after_sq = totals[8 * uAfterSlot + 4];
   bool converged = uLevel > 0 && before_abs < uAbsLimit;
-  bool rejected = !(after_sq < before_sq && flags[2 * uLevel] > 0u);
+  bool rejected = !(after_sq < before_sq && flags[uLevel] > 0u);
   if (converged || rejected || after_abs < uAbsLimit) gate_closed = 1u;
 }

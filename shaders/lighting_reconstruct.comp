@@ -4,9 +4,8 @@
 // pixel over its precomputed SRBF list: out = base + uSign · Σ_c μ_c G_c(ω).
 // Used three ways: the residue a level leaves (base = residue, sign −1); the reconstruction of
 // everything fitted so far on a finer grid (base = out = the magnified reconstruction, sign +1,
-// with uWriteResidue also writing target − out, the next level's residue); and, with
-// uOnlyIfDropped, the residue again only when the keep pass dropped an SRBF (no readback needed
-// to decide). uUseLists = 0 adds nothing (level 0: the reconstruction is the constant term).
+// with uWriteResidue also writing target − out, the next level's residue). uUseLists = 0 adds
+// nothing (level 0: the reconstruction is the constant term).
 layout(local_size_x = 256) in;
 
 struct Entry {
@@ -21,21 +20,17 @@ layout(std430, binding = 3) readonly buffer PixelEntries { Entry pixel_entries[]
 layout(std430, binding = 4) readonly buffer Mu { vec4 mu[]; };
 layout(std430, binding = 5) readonly buffer Target { vec4 target[]; };
 layout(std430, binding = 6) writeonly buffer Residue { vec4 residue[]; };
-layout(std430, binding = 7) readonly buffer Flags { uint flags[]; };  // per level: kept, dropped
 #include "lighting_gate.glsl"
 
 uniform int uCount;
 uniform float uSign;
 uniform int uUseLists;
 uniform int uWriteResidue;
-uniform int uOnlyIfDropped;
-uniform int uFlagsSlot;  // the level whose dropped flag uOnlyIfDropped reads
 
 void main() {
   if (gate_closed != 0u) return;
   int p = int(gl_GlobalInvocationID.x);
   if (p >= uCount) return;
-  if (uOnlyIfDropped != 0 && flags[2 * uFlagsSlot + 1] == 0u) return;
   vec3 acc = vec3(0.0);
   if (uUseLists != 0) {
     int end = pixel_begin[p + 1];

@@ -28,9 +28,9 @@ constexpr int kSlotFrame = 0, kSlots = 1 + 2 * kMaxLevels;
 int SlotBefore(int level) { return 1 + 2 * level; }
 int SlotAfter(int level) { return 2 + 2 * level; }
 constexpr std::size_t kSlotDoubles = 8;
-constexpr std::size_t kFlagsBytes = 2 * kMaxLevels * sizeof(std::uint32_t);  // per level: kept, dropped
-constexpr std::size_t kGateBytes = 2 * sizeof(std::uint32_t);                // closed, levels run
-constexpr std::size_t kPixelBytes = 4 * sizeof(float);                       // vec4 per pixel
+constexpr std::size_t kFlagsBytes = kMaxLevels * sizeof(std::uint32_t);  // per level: SRBFs kept
+constexpr std::size_t kGateBytes = 2 * sizeof(std::uint32_t);            // closed, levels run
+constexpr std::size_t kPixelBytes = 4 * sizeof(float);                   // vec4 per pixel
 
 // One overlap-list entry as the shaders read it: std430 struct { int; float; }.
 struct Entry {
@@ -89,6 +89,9 @@ struct ResidualTransformGpu::Tables {
   bool has_projection = false;  // the by-SRBF lists, needed only on the level's own grid
   gl::Buffer srbf_begin{gl::NoCreate}, srbf_entries{gl::NoCreate}, srbf_scale{gl::NoCreate};
   gl::Buffer pixel_begin{gl::NoCreate}, pixel_entries{gl::NoCreate};
+  // With the projection, where the level refits (SweepsOf > 1): its LevelGram, rows and entries.
+  bool has_gram = false;
+  gl::Buffer gram_begin{gl::NoCreate}, gram_entries{gl::NoCreate};
 };
 
 ResidualTransformGpu::ResidualTransformGpu(ResidualTransformOptions options)
@@ -109,6 +112,7 @@ ResidualTransformGpu::ResidualTransformGpu(ResidualTransformOptions options)
   upsample_ = gl::ShaderLibrary::Compute("lighting_upsample.comp");
   reconstruct_ = gl::ShaderLibrary::Compute("lighting_reconstruct.comp");
   keep_ = gl::ShaderLibrary::Compute("lighting_keep.comp");
+  gram_ = gl::ShaderLibrary::Compute("lighting_gram.comp");
   gate_program_ = gl::ShaderLibrary::Compute("lighting_gate.comp");
   totals_ = Zeros(sizeof(double) * kSlotDoubles * kSlots);
   flags_ = Zeros(kFlagsBytes);
@@ -153,6 +157,16 @@ const ResidualTransformGpu::Tables& ResidualTransformGpu::TablesFor(int level, i
     g->srbf_scale = gl::Buffer();
     g->srbf_scale.SetData(scale);
     g->has_projection = true;
+    if (SweepsOf(options_, level) > 1) {
+      const LevelGram gram = BuildLevelGram(t, options_.normalization, pool_.get());
+      std::vector<Entry> rows(gram.column.size());
+      for (std::size_t k = 0; k < rows.size(); ++k) rows[k] = {gram.column[k], gram.value[k]};
+      g->gram_begin = gl::Buffer();
+      g->gram_begin.SetData(gram.row_begin);
+      g->gram_entries = gl::Buffer();
+      g->gram_entries.SetData(rows);
+      g->has_gram = true;
+    }
   }
   spdlog::debug("lighting gpu: overlap lists of level {} on {}x{} built and uploaded in {:.1f} ms ({:.1f} MiB)", level,
                 width, height, MsSince(start),
@@ -196,6 +210,7 @@ void ResidualTransformGpu::PrepareGrids(int input_width, int input_height) {
   row_sums_.Allocate(static_cast<std::size_t>(grids_.back()->height) * 2 * kPixelBytes);
   const std::size_t srbfs = static_cast<std::size_t>(12) << (2 * (options_.levels - 1));
   for (auto& b : mu_) b.Allocate(srbfs * kPixelBytes);
+  for (auto& b : sweep_mu_) b.Allocate(srbfs * kPixelBytes);
   grids_input_width_ = input_width;
   grids_input_height_ = input_height;
 }
@@ -216,8 +231,7 @@ void ResidualTransformGpu::Sums(const gl::Buffer& image, const Grid& grid, int s
 }
 
 void ResidualTransformGpu::Reconstruct(const Tables* tables, const gl::Buffer& mu, const gl::Buffer& base,
-                                       const gl::Buffer& out, float sign, const Grid& grid, const gl::Buffer* residue,
-                                       int dropped_slot) {
+                                       const gl::Buffer& out, float sign, const Grid& grid, const gl::Buffer* residue) {
   Bind(base, 0);
   Bind(out, 1);
   // Unused bindings still get a valid buffer: the shader never touches them then.
@@ -226,13 +240,10 @@ void ResidualTransformGpu::Reconstruct(const Tables* tables, const gl::Buffer& m
   Bind(mu, 4);
   Bind(grid.image, 5);
   Bind(residue ? *residue : out, 6);
-  Bind(flags_, 7);
   reconstruct_.Set("uCount", static_cast<int>(grid.pixels()))
       .Set("uSign", sign)
       .Set("uUseLists", tables ? 1 : 0)
       .Set("uWriteResidue", residue ? 1 : 0)
-      .Set("uOnlyIfDropped", dropped_slot >= 0 ? 1 : 0)
-      .Set("uFlagsSlot", std::max(dropped_slot, 0))
       .DispatchCovering(static_cast<unsigned>(grid.pixels()));
   StorageBarrier();
 }
@@ -274,7 +285,7 @@ void ResidualTransformGpu::CorrectCoarserLevels(const gl::Buffer& leftover, int 
     // μ = 0 + step · projection: the step applied before the residue is updated, as on the CPU.
     glClearNamedBufferData(delta.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
     Project(t, *residue, delta, true, kCoarseCorrectionStep);
-    if (l > lower) Reconstruct(&t, delta, *residue, *residue, -1.f, grid, nullptr, -1);
+    if (l > lower) Reconstruct(&t, delta, *residue, *residue, -1.f, grid, nullptr);
   }
   for (int l = upper; l >= lower; --l) {
     const std::vector<glm::vec4> delta4 =
@@ -385,10 +396,10 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
       const float fill[4] = {model.constant.x, model.constant.y, model.constant.z, 0.f};
       glClearNamedBufferSubData(recon_[recon].id(), GL_RGBA32F, 0, grid.pixels() * kPixelBytes, GL_RGBA, GL_FLOAT,
                                 fill);
-      if (s == 0) Reconstruct(nullptr, mu, recon_[recon], recon_[recon], 1.f, grid, &residue, -1);
+      if (s == 0) Reconstruct(nullptr, mu, recon_[recon], recon_[recon], 1.f, grid, &residue);
       for (int l = 0; l < s; ++l)
         Reconstruct(&TablesFor(l, grid.width, grid.height, false), level_mu_[static_cast<std::size_t>(l)],
-                    recon_[recon], recon_[recon], 1.f, grid, l == s - 1 ? &residue : nullptr, -1);
+                    recon_[recon], recon_[recon], 1.f, grid, l == s - 1 ? &residue : nullptr);
     } else {
       const Grid& coarser = *grids_[level - 1];
       Bind(recon_[recon], 0);
@@ -399,7 +410,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
       StorageBarrier();
       recon = 1 - recon;
       Reconstruct(&TablesFor(s - 1, grid.width, grid.height, false), level_mu_[level - 1], recon_[recon], recon_[recon],
-                  1.f, grid, &residue, -1);
+                  1.f, grid, &residue);
     }
     Sums(residue, grid, SlotBefore(s));
 
@@ -407,10 +418,25 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     // extra sweeps, then the keep rule.
     const Tables& t = TablesFor(s, grid.width, grid.height, true);
     Project(t, residue, mu, false);
-    Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr, -1);
-    for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
-      Project(t, remaining, mu, true, RelaxationOf(options_, s));
-      Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr, -1);
+    if (SweepsOf(options_, s) > 1) {
+      // The refits on the amplitudes (lighting_gram.comp), as the CPU path makes them:
+      // sweep_mu_[0] keeps P(r), each sweep writes sweep_mu_[1] and copies it back into μ.
+      const auto bytes = static_cast<GLsizeiptr>(static_cast<std::size_t>(t.srbfs) * kPixelBytes);
+      glCopyNamedBufferSubData(mu.id(), sweep_mu_[0].id(), 0, 0, bytes);
+      glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+      for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
+        Bind(sweep_mu_[0], 0);
+        Bind(t.gram_begin, 1);
+        Bind(t.gram_entries, 2);
+        Bind(mu, 3);
+        Bind(sweep_mu_[1], 4);
+        gram_.Set("uCount", t.srbfs)
+            .Set("uStep", RelaxationOf(options_, s))
+            .DispatchCovering(static_cast<unsigned>(t.srbfs));
+        StorageBarrier();
+        glCopyNamedBufferSubData(sweep_mu_[1].id(), mu.id(), 0, 0, bytes);
+        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+      }
     }
     Bind(mu, 0);
     Bind(flags_, 1);
@@ -419,7 +445,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
         .Set("uFlagsSlot", s)
         .DispatchCovering(static_cast<unsigned>(t.srbfs));
     StorageBarrier();
-    Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr, s);
+    Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr);
     Sums(remaining, grid, SlotAfter(s));
     Bind(totals_, 0);
     Bind(flags_, 1);
@@ -444,7 +470,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   const std::vector<std::uint8_t> results = results_.Read<std::uint8_t>(offset);
   std::vector<double> totals(kSlotDoubles * kSlots);
   std::memcpy(totals.data(), results.data(), totals_bytes);
-  std::uint32_t flags[2 * kMaxLevels];
+  std::uint32_t flags[kMaxLevels];
   std::memcpy(flags, results.data() + totals_bytes, kFlagsBytes);
   std::uint32_t gate[2];
   std::memcpy(gate, results.data() + totals_bytes + kFlagsBytes, kGateBytes);
@@ -474,7 +500,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     }
     const Grid& grid = *grids_[level];
     const Tables& t = TablesFor(s, grid.width, grid.height, true);
-    const int kept = static_cast<int>(flags[2 * level]);
+    const int kept = static_cast<int>(flags[level]);
     LevelReport lr;
     lr.level = s;
     lr.srbfs_total = t.srbfs;

@@ -3,7 +3,8 @@
 // the same algorithm and the same decisions as ResidualTransform (residual_transform.h), with
 // the work in GLSL compute shaders. Per level, as in the seed, two passes: the projection (one
 // work group per SRBF over its precomputed pixel list, a shared-memory reduction) and the
-// reconstruction with the residue update (one invocation per pixel over its SRBF list). The
+// reconstruction with the residue update (one invocation per pixel over its SRBF list); a level's
+// refitting sweeps run on its amplitudes between the two (lighting_gram.comp, LevelGram). The
 // frame is uploaded once (or read from a texture the caller already has), area-resampled to the
 // working grids, and the coarser levels evaluated on each grid (or, with exact_reconstruction
 // off, their reconstruction magnified) on the GPU. Every level is queued without a read-back in
@@ -56,10 +57,9 @@ class ResidualTransformGpu {
   void Project(const Tables& tables, const gl::Buffer& residue, const gl::Buffer& mu, bool accumulate,
                float step = 1.f);
   // out = base + sign·Σ μ G (tables == nullptr: nothing added); with `residue`, also grid's image
-  // − out there; with dropped_slot ≥ 0, only if that level's keep pass dropped an SRBF. See
-  // lighting_reconstruct.comp.
+  // − out there. See lighting_reconstruct.comp.
   void Reconstruct(const Tables* tables, const gl::Buffer& mu, const gl::Buffer& base, const gl::Buffer& out,
-                   float sign, const Grid& grid, const gl::Buffer* residue, int dropped_slot);
+                   float sign, const Grid& grid, const gl::Buffer* residue);
   // ResidualTransformOptions::coarse_correction, as the CPU path does it: `leftover` is what every
   // level left, on grids_[leftover_grid] (refitted in place when that is the upper level's grid).
   void CorrectCoarserLevels(const gl::Buffer& leftover, int leftover_grid, float keep, SgLighting* model);
@@ -70,12 +70,13 @@ class ResidualTransformGpu {
   // by solid angle, as sphere::ResampleArea does.
   gl::Program resample_texture_{gl::NoCreate}, resample_{gl::NoCreate}, upsample_{gl::NoCreate}, stats_{gl::NoCreate},
       stats_total_{gl::NoCreate}, project_{gl::NoCreate}, reconstruct_{gl::NoCreate}, keep_{gl::NoCreate},
-      gate_program_{gl::NoCreate};
+      gram_{gl::NoCreate}, gate_program_{gl::NoCreate};
   std::map<std::tuple<int, int, int>, std::unique_ptr<Tables>> tables_;
   std::vector<std::unique_ptr<Grid>> grids_;  // per level, for the last input size
   int grids_input_width_ = 0, grids_input_height_ = 0;
   // Scratch images (vec4 per pixel) sized for the finest grid, and the per-level state.
   gl::Buffer recon_[2], correction_, row_sums_, totals_, flags_, counters_, gate_, mu_[2];
+  gl::Buffer sweep_mu_[2];  // a level's refits on its amplitudes: its first projection, the next μ
   // Per level, on its grid: the residue entering it and what it leaves (the coarse correction
   // needs the last kept level's, which the levels queued after it must not overwrite), and its
   // amplitudes.
