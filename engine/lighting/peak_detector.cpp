@@ -390,9 +390,16 @@ std::vector<std::vector<int>> Components(const sphere::EquirectImage& frame, con
             const int p = stack.back();
             stack.pop_back();
             pixels.push_back(p);
-            const int r = p / w, c = p % w;
-            for (int r2 = std::max(0, r - 1); r2 <= std::min(h - 1, r + 1); ++r2)
-              for (int dc = -1; dc <= 1; ++dc) push(r2 * w + (c + dc + w) % w);
+            // The neighbours' columns wrapped by hand, as the ring's below, not by an integer
+            // division each: BrightComponents on dawn.exr's 1784-pixel glow at 1024 wide (the scan
+            // and this, one thread) 315 → 260–297 µs.
+            const int r = p / w, c = p - r * w;
+            const int left = c == 0 ? w - 1 : c - 1, right = c == w - 1 ? 0 : c + 1;
+            for (int r2 = std::max(0, r - 1); r2 <= std::min(h - 1, r + 1); ++r2) {
+              push(r2 * w + left);
+              push(r2 * w + c);
+              push(r2 * w + right);
+            }
             if (r == 0 && !top_joined) {
               top_joined = true;
               for (int q : top) push(q);
@@ -555,7 +562,8 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
   for (std::size_t i = 0; i < components.size(); ++i) {
     if (components[i].empty()) continue;
     double e = 0;
-    for (int p : components[i]) e += Luminance(frame.at(p % w, p / w)) * da[static_cast<std::size_t>(p / w)];
+    for (int p : components[i])
+      e += Luminance(&frame.rgb[3 * static_cast<std::size_t>(p)]) * da[static_cast<std::size_t>(p / w)];
     rough.emplace_back(e, i);
   }
   std::sort(rough.rbegin(), rough.rend());
@@ -601,26 +609,28 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
     in.Clear();
     Candidate c;
     c.background = ring_n ? glm::vec3(ring / double(ring_n)) : glm::vec3(0);
+    const auto value = [&](int p) { return &frame.rgb[3 * static_cast<std::size_t>(p)]; };
+    // A light stands out from what surrounds it; a glow only a few times its ring (dawn.exr's
+    // reddened sky around the sun, 4× its ring) is smooth enough for the hierarchy, and 1–3 SGs
+    // fitted to its irregular shape put its light in the wrong places (glossy200 error 0.008
+    // without peaks, 0.052 with). A clipped LDR sun's contrast is lost with its intensity.
+    // Judged before the per-pixel excess, which a glow would only throw away.
+    if (!out.ldr) {
+      double brightest = 0;
+      for (int p : pixels) brightest = std::max(brightest, Luminance(value(p)));
+      const float ring_level[3] = {c.background.x, c.background.y, c.background.z};
+      if (brightest < options.min_contrast * Luminance(ring_level)) continue;
+    }
     std::vector<glm::dvec3> excess(pixels.size());
     for (std::size_t i = 0; i < pixels.size(); ++i) {
       const int p = pixels[i];
-      const float* v = frame.at(p % w, p / w);
+      const float* v = value(p);
       excess[i] = glm::max(glm::dvec3(v[0], v[1], v[2]) - glm::dvec3(c.background), glm::dvec3(0)) *
                   da[static_cast<std::size_t>(p / w)];
       c.peak.energy += excess[i];
     }
     c.peak.pixels = static_cast<int>(pixels.size());
     if (c.peak.energy == glm::dvec3(0)) continue;
-    // A light stands out from what surrounds it; a glow only a few times its ring (dawn.exr's
-    // reddened sky around the sun, 4× its ring) is smooth enough for the hierarchy, and 1–3 SGs
-    // fitted to its irregular shape put its light in the wrong places (glossy200 error 0.008
-    // without peaks, 0.052 with). A clipped LDR sun's contrast is lost with its intensity.
-    if (!out.ldr) {
-      double brightest = 0;
-      for (int p : pixels) brightest = std::max(brightest, Luminance(frame.at(p % w, p / w)));
-      const float ring_level[3] = {c.background.x, c.background.y, c.background.z};
-      if (brightest < options.min_contrast * Luminance(ring_level)) continue;
-    }
 
     // Elongated? Principal axes of the pixel directions about the mean: split by k-means.
     const RgbSg whole = FitSg(pixels, excess, frame, pixel_angle);
