@@ -69,8 +69,9 @@ struct ResidualTransformOptions {
   // bridge's glossy-200 ratio from 1.16 to 2.15 and 2.38 (2026-12-05, with peaks): three stay.
   // Since the sweeps run on the amplitudes (LevelGram) a sweep costs a product with a sparse
   // matrix, not a pass over the grid, but more do not buy much: six at ω = 1.7 (bridge, forest,
-  // hall, studio, venice, park at 2048 wide) took bridge's glossy-200 ratio 1.16 → 0.97 and left
-  // the others within ±0.15 (park's without peaks 1.59 → 1.64).
+  // hall, studio, venice, park at 2048 wide) took bridge's glossy-200 ratio 1.16 → 0.97 and moved
+  // the others both ways by up to 0.24 (studio's diffuse without peaks 1.77 → 1.53, park's
+  // glossy-20 1.31 → 1.45).
   double fine_relaxation = 1.7;
   // Working width of level s: base_width·2^s (at least 64, at most the input's). 32 puts level 4
   // (σ = 1.5°) on a 512-wide grid, two pixels per σ: `odvr bench light --base-width 32|64` on
