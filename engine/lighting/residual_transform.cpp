@@ -256,37 +256,6 @@ void Reconstruct(const LevelTables& t, const std::vector<glm::vec3>& mu, float s
       t.srbf_begin.back() < kSerialEntries ? t.height : 4);
 }
 
-// image += Σ_c dropped_c G_c over the SRBFs with a nonzero entry, row by row: after a level
-// drops its negligible SRBFs, what it leaves gains back their share, without evaluating the
-// whole level again (that pass was 6 % of level 4's time at 2048 wide, on most maps for a few
-// SRBFs).
-void AddDropped(const LevelTables& t, const std::vector<glm::vec3>& dropped, sphere::EquirectImage* image,
-                ThreadPool* pool) {
-  const int width = t.width;
-  pool->ParallelFor(
-      t.height,
-      [&](long begin, long end) {
-        for (long row = begin; row < end; ++row) {
-          float* out = image->rgb.data() + 3 * static_cast<std::size_t>(row) * width;
-          for (int k = t.row_run_begin[static_cast<std::size_t>(row)];
-               k < t.row_run_begin[static_cast<std::size_t>(row) + 1]; ++k) {
-            const LevelTables::RowRun& run = t.row_runs[static_cast<std::size_t>(k)];
-            const glm::vec3 m = dropped[static_cast<std::size_t>(run.srbf)];
-            if (m == glm::vec3(0)) continue;
-            const float* g = t.row_g.data() + run.entry;
-            const int first = 4 * run.block, last = std::min(width, 4 * (run.block + run.blocks));
-            for (int col = first; col < last; ++col) {
-              const float gc = g[col - first];
-              out[3 * col] += m.x * gc;
-              out[3 * col + 1] += m.y * gc;
-              out[3 * col + 2] += m.z * gc;
-            }
-          }
-        }
-      },
-      t.srbf_begin.back() < kSerialEntries ? t.height : 4);
-}
-
 // residue = target − R_{<s}, R_{<s} = the constant plus every coarser level evaluated on this
 // grid (`tables[l]`, `mu[l]`), made row by row in one pass: each row of R is the constant, then
 // each level's row sums added in level order, as whole-grid passes per level add them, without
@@ -945,24 +914,17 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
         for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += step * delta[c];
       }
     }
+    // Model only what the frame needs: drop negligible SRBFs before the one reconstruction, so
+    // what the level leaves keeps their share.
+    int kept = 0;
+    for (glm::vec3& m : mu) {
+      if (std::max({std::abs(m.x), std::abs(m.y), std::abs(m.z)}) < keep)
+        m = glm::vec3(0);
+      else
+        ++kept;
+    }
     remaining.Reshape(w, h);
     Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
-    // Model only what the frame needs: drop negligible SRBFs, and give their share back to
-    // what the level leaves.
-    int kept = 0;
-    std::vector<glm::vec3> dropped(mu.size(), glm::vec3(0));
-    bool dropped_any = false;
-    for (std::size_t c = 0; c < mu.size(); ++c) {
-      glm::vec3& m = mu[c];
-      if (std::max({std::abs(m.x), std::abs(m.y), std::abs(m.z)}) < keep) {
-        if (m != glm::vec3(0)) dropped_any = true;
-        dropped[c] = m;
-        m = glm::vec3(0);
-      } else {
-        ++kept;
-      }
-    }
-    if (dropped_any) AddDropped(t, dropped, &remaining, pool_.get());
     const AbsAndSquareSums sums_after = SphereAbsAndSquareSums(remaining, pool_.get());
     const double after = MeanAbsOf(sums_after) / report.mean_radiance;
     // The rejection rule looks at the RMS: the mean |residue| may rise when a sun's energy is

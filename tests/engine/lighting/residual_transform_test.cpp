@@ -70,8 +70,8 @@ TEST(ResidualTransform, SmoothSkyStopsEarlyAndReconstructsWell) {
 }
 
 TEST(ResidualTransform, DroppedSrbfsGiveTheirShareBackToTheResidue) {
-  // A level that drops negligible SRBFs adds their terms back to what it leaves instead of
-  // evaluating itself again: the residue it reports must be that of the kept SRBFs alone. At
+  // A level that drops negligible SRBFs leaves their share in the residue: the residue it
+  // reports must be that of the kept SRBFs alone. At
   // level 0 (λ 5.5) every cap covers the whole sphere, so the model's own reconstruction on the
   // level's 64 × 32 grid is the reference.
   sphere::EquirectImage frame = SkyMap(128, 64);
