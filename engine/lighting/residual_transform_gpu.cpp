@@ -89,7 +89,7 @@ struct ResidualTransformGpu::Tables {
   bool has_projection = false;  // the by-SRBF lists, needed only on the level's own grid
   gl::Buffer srbf_begin{gl::NoCreate}, srbf_entries{gl::NoCreate}, srbf_scale{gl::NoCreate};
   gl::Buffer pixel_begin{gl::NoCreate}, pixel_entries{gl::NoCreate};
-  // With the projection, where the level refits (SweepsOf > 1): its LevelGram, rows and entries.
+  // With the projection on the level's own grid, where it refits (SweepsOf > 1): its LevelGram.
   bool has_gram = false;
   gl::Buffer gram_begin{gl::NoCreate}, gram_entries{gl::NoCreate};
 };
@@ -128,7 +128,12 @@ ResidualTransformGpu::~ResidualTransformGpu() {
 
 const ResidualTransformGpu::Tables& ResidualTransformGpu::TablesFor(int level, int width, int height, bool projection) {
   auto& slot = tables_[{level, width, height}];
-  if (slot && (slot->has_projection || !projection)) return *slot;
+  // The refits' LevelGram only where the level projects on its own grid: the coarse correction
+  // also projects a level on the grid above its own, and never refits there. A grid can be both
+  // for different input sizes, so a slot built without it is rebuilt when it is needed.
+  const Grid& own = *grids_[static_cast<std::size_t>(level)];
+  const bool gram = projection && SweepsOf(options_, level) > 1 && own.width == width && own.height == height;
+  if (slot && (slot->has_projection || !projection) && (slot->has_gram || !gram)) return *slot;
   const auto start = Clock::now();
   const LevelTables t = BuildLevelTables(level, width, height, RegionCutoffOf(options_, level), pool_.get());
   auto g = std::make_unique<Tables>();
@@ -157,12 +162,12 @@ const ResidualTransformGpu::Tables& ResidualTransformGpu::TablesFor(int level, i
     g->srbf_scale = gl::Buffer();
     g->srbf_scale.SetData(scale);
     g->has_projection = true;
-    if (SweepsOf(options_, level) > 1) {
-      const LevelGram gram = BuildLevelGram(t, options_.normalization, pool_.get());
-      std::vector<Entry> rows(gram.column.size());
-      for (std::size_t k = 0; k < rows.size(); ++k) rows[k] = {gram.column[k], gram.value[k]};
+    if (gram) {
+      const LevelGram m = BuildLevelGram(t, options_.normalization, pool_.get());
+      std::vector<Entry> rows(m.column.size());
+      for (std::size_t k = 0; k < rows.size(); ++k) rows[k] = {m.column[k], m.value[k]};
       g->gram_begin = gl::Buffer();
-      g->gram_begin.SetData(gram.row_begin);
+      g->gram_begin.SetData(m.row_begin);
       g->gram_entries = gl::Buffer();
       g->gram_entries.SetData(rows);
       g->has_gram = true;
