@@ -20,6 +20,7 @@
 
 #include "app/bench_common.h"
 #include "app/commands.h"
+#include "app/render_switches.h"
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
@@ -57,14 +58,9 @@ struct BenchRenderOptions {
   bool lobe_modes = true;     // also the four warp × cosine modes at the default configuration
   bool hd_row = true;         // a 1280×720 row (shade ms)
   bool ground_bounce = true;  // the media maps' lower half = Cycles' catcher seen from the car
-  // The SG rows' lighting lists (RenderOptions::depth_per_lobe, overlap_cutoff), for A/B runs.
-  bool depth_per_lobe = render::RenderOptions{}.depth_per_lobe;
-  double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
-  int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
-  int shading_rate = render::RenderOptions{}.shading_rate;
-  bool exact_peak_shadows = render::RenderOptions{}.exact_peak_shadows;
-  bool valid_reflection_normals = render::RenderOptions{}.valid_reflection_normals;
-  bool specular_bounce = render::RenderOptions{}.specular_bounce;
+  // What every row starts from: RenderOptions' defaults but for AddRenderSwitches' flags, for A/B
+  // runs (the shading rate applies to the SG rows of one sample per pixel).
+  render::RenderOptions switches;
   std::string out_dir = "docs/benchmarks";
   bool report_only = false;
 };
@@ -775,29 +771,10 @@ int RunBenchRender(BenchRenderOptions o) {
                   [&](const Reference& r) { return std::find(o.only.begin(), o.only.end(), r.name) == o.only.end(); });
   if (refs.empty()) throw UsageError("bench render", "no reference to run");
 
-  render::RenderOptions base;
-  base.depth_per_lobe = o.depth_per_lobe;
-  base.overlap_cutoff = o.overlap_cutoff;
-  base.ground_lit_map_texels = o.ground_lit_map;
-  base.shading_rate = o.shading_rate;
-  base.exact_peak_shadows = o.exact_peak_shadows;
-  base.valid_reflection_normals = o.valid_reflection_normals;
-  base.specular_bounce = o.specular_bounce;
+  const render::RenderOptions& base = o.switches;
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
-  if (!o.depth_per_lobe) machine += "; --bin-depth";
-  if (o.overlap_cutoff != render::RenderOptions{}.overlap_cutoff)
-    machine += "; --overlap-cutoff " + std::to_string(o.overlap_cutoff);
-  if (o.ground_lit_map != render::RenderOptions{}.ground_lit_map_texels)
-    machine += "; --ground-lit-map " + std::to_string(o.ground_lit_map);
-  if (o.exact_peak_shadows != render::RenderOptions{}.exact_peak_shadows)
-    machine += o.exact_peak_shadows ? "; --exact-peak-shadows" : "; --peak-cone-shadows";
-  if (o.valid_reflection_normals != render::RenderOptions{}.valid_reflection_normals)
-    machine += o.valid_reflection_normals ? "; --valid-reflection-normals" : "; --raw-normals";
-  if (o.specular_bounce != render::RenderOptions{}.specular_bounce)
-    machine += o.specular_bounce ? "; --specular-bounce" : "; --no-specular-bounce";
-  if (o.shading_rate != render::RenderOptions{}.shading_rate)
-    machine += "; --shading-rate " + std::to_string(o.shading_rate) + " (SG rows of one sample per pixel)";
+  for (const std::string& flag : NonDefaultRenderSwitches(base)) machine += "; " + flag;
   // One-at-a-time around the default: every level count, cone count and resolution once.
   std::vector<std::array<int, 3>> configs;
   for (int l : o.levels) configs.push_back({l, kDefaultCones, kDefaultVoxels});
@@ -892,26 +869,7 @@ CommandFn AddBenchRender(CLI::App* sub) {
   sub->add_flag("!--no-hd", o->hd_row, "Skip the 1280x720 timing row");
   sub->add_flag("!--no-ground-bounce", o->ground_bounce,
                 "Light the media references from their maps' lower half, not from Cycles' catcher plane");
-  sub->add_flag("!--bin-depth", o->depth_per_lobe,
-                "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
-  sub->add_option("--overlap-cutoff", o->overlap_cutoff, "The overlap bins' cutoff (RenderOptions::overlap_cutoff)")
-      ->check(CLI::Range(1e-6, 0.5));
-  sub->add_option("--ground-lit-map", o->ground_lit_map,
-                  "The ground's lit-fraction grid's texels per side at most (RenderOptions::ground_lit_map_texels; 0: "
-                  "traced per cone)")
-      ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
-  sub->add_flag("--exact-peak-shadows,!--peak-cone-shadows", o->exact_peak_shadows,
-                "The SG rows' peaks shadowed by a ray against the triangles, or by their cones through the voxels "
-                "(RenderOptions::exact_peak_shadows)");
-  sub->add_flag("--valid-reflection-normals,!--raw-normals", o->valid_reflection_normals,
-                "Every row's G-buffer normals tilted where the mirrored view would dive below the triangle, or left "
-                "as interpolated (RenderOptions::valid_reflection_normals)");
-  sub->add_flag("--specular-bounce,!--no-specular-bounce", o->specular_bounce,
-                "The SG rows with one bounce of the car's specular light on itself, found along the G-buffer, or "
-                "none (RenderOptions::specular_bounce)");
-  sub->add_option("--shading-rate", o->shading_rate,
-                  "The SG rows' shading rate (RenderOptions::shading_rate; 2: a pixel per smooth 2x2 block)")
-      ->check(CLI::IsMember({1, 2}));
+  AddRenderSwitches(sub, &o->switches);
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchRender(*o); };

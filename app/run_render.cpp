@@ -14,6 +14,7 @@
 
 #include "app/bench_common.h"
 #include "app/commands.h"
+#include "app/render_switches.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
@@ -36,13 +37,7 @@ struct RenderCliOptions {
   std::string model_matrix, env_rotation;
   std::vector<std::string> materials;
   bool no_peaks = false;
-  bool bin_depth = false;
-  double overlap_cutoff = render::RenderOptions{}.overlap_cutoff;
-  int ground_lit_map = render::RenderOptions{}.ground_lit_map_texels;
-  bool exact_peak_shadows = render::RenderOptions{}.exact_peak_shadows;
-  bool valid_reflection_normals = render::RenderOptions{}.valid_reflection_normals;
-  bool specular_bounce = render::RenderOptions{}.specular_bounce;
-  int shading_rate = render::RenderOptions{}.shading_rate;
+  render::RenderOptions switches;  // AddRenderSwitches' flags
   std::string device = "gpu";
   bool json = false;
   bool composite_only = false;
@@ -81,20 +76,13 @@ int RunRender(const RenderCliOptions& o) {
   const auto [width, height] = ParseSize(o.size);
   if (width < 8 || height < 8 || width > 8192 || height > 8192)
     throw UsageError("--size", "each side must be 8..8192 pixels, got '" + o.size + "'");
-  render::RenderOptions options;
+  render::RenderOptions options = o.switches;
   options.lighting_levels = o.levels;
   options.cone_rings = ConeRingsForCount(o.cones);
   options.voxel_resolution = o.voxels;
   options.supersample = o.supersample;
   options.supersample_contrast = o.supersample_contrast;
   options.peak_cones = !o.no_peaks;
-  options.depth_per_lobe = !o.bin_depth;
-  options.overlap_cutoff = o.overlap_cutoff;
-  options.ground_lit_map_texels = o.ground_lit_map;
-  options.exact_peak_shadows = o.exact_peak_shadows;
-  options.valid_reflection_normals = o.valid_reflection_normals;
-  options.specular_bounce = o.specular_bounce;
-  options.shading_rate = o.shading_rate;
   options.read_layers = !o.composite_only;
   options.shade_lanes = o.shade_lanes;
   if (o.composite_only && !o.layers.empty())
@@ -238,13 +226,6 @@ int RunRender(const RenderCliOptions& o) {
           {"voxels", o.voxels},
           {"supersample", o.supersample},
           {"shade_lanes", c.shade_lanes},
-          {"depth_per_lobe", !o.bin_depth},
-          {"overlap_cutoff", o.overlap_cutoff},
-          {"ground_lit_map_texels", o.ground_lit_map},
-          {"exact_peak_shadows", o.exact_peak_shadows},
-          {"valid_reflection_normals", o.valid_reflection_normals},
-          {"specular_bounce", o.specular_bounce},
-          {"shading_rate", o.shading_rate},
           {"pixels_sampled_fully", c.pixels_sampled_fully},
           {"car_pixels", c.car_pixels},
           {"ground_pixels_occluded", c.ground_pixels},
@@ -254,6 +235,7 @@ int RunRender(const RenderCliOptions& o) {
           {"triples_per_car_pixel", c.triples_per_car_pixel},
           {"cones_total", c.cones_total},
           {"triples_total", c.triples_total}}}};
+    j["counts"].update(RenderSwitchesJson(options));
     std::cout << j.dump(2) << "\n";
   } else {
     std::cout << o.out << ": " << width << "x" << height << ", " << c.car_pixels
@@ -302,10 +284,6 @@ CommandFn AddRender(CLI::App* sub) {
                   "Shade every sample only of pixels whose surfaces differ or whose luminance differs from a "
                   "neighbour's by more than this fraction (0: every pixel)")
       ->check(CLI::Range(0.0, 1.0));
-  sub->add_option("--shading-rate", o->shading_rate,
-                  "2: shade one pixel of each 2x2 block, every pixel only of blocks that are not smooth (by "
-                  "--supersample-contrast), and fill the rest between the shaded pixels")
-      ->check(CLI::IsMember({1, 2}));
   sub->add_option("--camera", o->camera, "px,py,pz,tx,ty,tz,vfov_deg: position, target (world, +Y up, metres)");
   sub->add_option("--material", o->materials,
                   "Override materials: [NAME=]KD,KS,N or [NAME=]MODEL:PARAMS[+MODEL:PARAMS] with MODEL lambert, phong, "
@@ -315,23 +293,7 @@ CommandFn AddRender(CLI::App* sub) {
                   "world_from_env rotation, 9 numbers row-major (default: identity)");
   sub->add_option("--background", o->background, "Composite over this image (of the output size) instead of --env");
   sub->add_flag("--no-peaks", o->no_peaks, "No peak detection and no extra cone per peak light");
-  sub->add_flag("--bin-depth", o->bin_depth,
-                "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
-  sub->add_option("--overlap-cutoff", o->overlap_cutoff,
-                  "An SRBF lights a lobe where their product's integral is at least this fraction of its aligned value")
-      ->check(CLI::Range(1e-6, 0.5));
-  sub->add_option("--ground-lit-map", o->ground_lit_map,
-                  "Texels per side at most of the grid the ground's lit fraction is read from under the car "
-                  "(0: traced from every point a cone meets the ground)")
-      ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
-  sub->add_flag("--exact-peak-shadows,!--peak-cone-shadows", o->exact_peak_shadows,
-                "Shadow each peak (a sun, a lamp) by a ray against the triangles, or by its cone through the voxels");
-  sub->add_flag("--valid-reflection-normals,!--raw-normals", o->valid_reflection_normals,
-                "Tilt a shading normal whose mirrored view would dive below its triangle, as Cycles does, or keep the "
-                "interpolated normal");
-  sub->add_flag("--specular-bounce,!--no-specular-bounce", o->specular_bounce,
-                "One bounce of the car's specular light on itself, found along the G-buffer, or none "
-                "(RenderOptions::specular_bounce)");
+  AddRenderSwitches(sub, &o->switches);
   sub->add_option("--device", o->device, "Where the shading runs")->check(CLI::IsMember({"gpu", "cpu"}));
   sub->add_option("--out", o->out, "The composite (PNG: sRGB 8-bit; EXR: linear)")->required();
   sub->add_option("--layers", o->layers, "Also write car, car_alpha, shadow, background, composite as EXR here");
