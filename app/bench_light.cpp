@@ -49,6 +49,8 @@ struct BenchLightOptions {
   // three runs, SH 8's median, the same work on every map, read 0.75–1.22 ms across the maps.
   double min_time_ms = 100;
   bool gpu = false;
+  // Before each GPU row, untimed calls for this long (WarmUp).
+  double gpu_warm_up_ms = 200;
   bool least_squares = true;
   // SH projects an area-resampled copy of the same frame the SG model gets, at this width, and
   // its time includes that resampling. From a 2048-wide frame, SH 8 and 16 projected at 256 wide
@@ -73,6 +75,17 @@ std::vector<double> TimedRuns(const BenchLightOptions& o, Run run) {
     total += times.back();
   }
   return times;
+}
+
+// Untimed calls of `run` until `ms` have passed, at least one (it builds the overlap lists). A GPU
+// left idle through the CPU rows lowers its clocks, and the first calls after pay for it: on the
+// H200 the 1- and 2-level `gpu-resident` rows read 2.0–2.1 ms, above the 4-level row's 0.83
+// (docs/benchmarks/h200.md).
+template <class Run>
+void WarmUp(double ms, Run run) {
+  const auto start = std::chrono::steady_clock::now();
+  do run();
+  while (std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count() < ms);
 }
 
 struct Row {
@@ -353,7 +366,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchLightOptions& o, const
      << "stitcher hands it), resampled on the GPU. Time is the median of " << o.repeats << " or more runs (until "
      << o.min_time_ms << " ms have passed, at most " << kMaxRuns
      << ") on one frame, each a warm call as playback makes it every frame (one untimed call first builds "
-     << "the transform's overlap lists and the builder's scratch grid).\n\n"
+     << "the transform's overlap lists and the builder's scratch grid; before a GPU row, untimed calls for "
+     << o.gpu_warm_up_ms << " ms, so that a GPU idle through the CPU rows has its clocks up).\n\n"
      << "| width | method | device | levels/order | coefficients | ms | rel_l2 | diffuse | glossy20 | glossy200 |\n"
      << "|---|---|---|---|---|---|---|---|---|---|\n";
   const auto median = [](std::vector<double> v) {
@@ -496,7 +510,8 @@ int RunBenchLight(BenchLightOptions o) {
             lo.detect_peaks = peaks;
             lighting::LightingBuilder builder(lo);
             if (device == "gpu") gpu = std::make_unique<lighting::ResidualTransformGpu>(lo.transform);
-            lighting::SgLighting model = builder.Build(frame, nullptr, gpu.get());  // warm-up: lists
+            lighting::SgLighting model;
+            WarmUp(device == "gpu" ? o.gpu_warm_up_ms : 0, [&] { model = builder.Build(frame, nullptr, gpu.get()); });
             const std::vector<double> times = TimedRuns(o, [&] {
               lighting::LightingReport report;
               model = builder.Build(frame, &report, device == "gpu" ? gpu.get() : nullptr);
@@ -509,7 +524,8 @@ int RunBenchLight(BenchLightOptions o) {
               // transform alone, without the upload and the CPU resampling that `gpu` includes.
               gl::Texture texture = gl::Texture::Create2D(GL_RGB32F, frame.width, frame.height);
               texture.Upload2D(GL_RGB, GL_FLOAT, frame.rgb.data());
-              lighting::SgLighting resident = gpu->Run(texture);  // warm-up: this grid's lists
+              lighting::SgLighting resident;
+              WarmUp(o.gpu_warm_up_ms, [&] { resident = gpu->Run(texture); });  // and this grid's lists
               const std::vector<double> resident_times = TimedRuns(o, [&] {
                 lighting::TransformReport report;
                 resident = gpu->Run(texture, &report);
@@ -541,6 +557,10 @@ CommandFn AddBenchLight(CLI::App* sub) {
                   "Run only this level count (and its least-squares fit): a quick check of one configuration")
       ->check(CLI::Range(1, 6));
   sub->add_flag("--skip-peaks", o->skip_peaks, "Leave out the sg+peaks rows");
+  sub->add_option(
+         "--gpu-warm-up-ms", o->gpu_warm_up_ms,
+         "Before each GPU row, untimed calls for this long (a GPU idle through the CPU rows lowers its clocks)")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--min-time-ms", o->min_time_ms, "Time runs until this much time has passed (>= --repeats runs)")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--repeats", o->repeats, "Timed runs per configuration (the median is kept)")
