@@ -24,6 +24,22 @@ using odvr::testing::ScratchDir;
 
 namespace fs = std::filesystem;
 
+// The cells of `tsv`'s `sg` rows of `reference` (a bench's render.tsv), each checked for the
+// table's 22 columns.
+std::vector<std::vector<std::string>> SgRows(const fs::path& tsv, const std::string& reference) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream text(ReadText(tsv));
+  for (std::string line; std::getline(text, line);) {
+    if (line.rfind(reference + "\tsg\t", 0) != 0) continue;
+    std::vector<std::string> v;
+    std::istringstream cells(line);
+    for (std::string c; std::getline(cells, c, '\t');) v.push_back(c);
+    EXPECT_EQ(v.size(), 22u) << line;
+    if (v.size() == 22u) rows.push_back(std::move(v));
+  }
+  return rows;
+}
+
 const char* kHeader =
     "reference\tmethod\tlobes\twidth\theight\tlevels\tcones\tvoxels\tsamples\tmean_rel\trel_l1\tbias\tssim\t"
     "shadow_mae\tshadow_px\tcar_px\tshade_ms\ttotal_ms\n";
@@ -148,15 +164,8 @@ TEST(BenchRenderGL, StudioDiffuseIsWithinTenPercentOfCycles) {
       "--no-lobe-modes --no-hd --out " +
       d.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  std::istringstream tsv(ReadText(d.dir / "render.tsv"));
-  std::string line;
   bool found = false;
-  while (std::getline(tsv, line)) {
-    if (line.rfind("studio_diffuse\tsg\t", 0) != 0) continue;
-    std::vector<std::string> v;
-    std::istringstream cells(line);
-    for (std::string c; std::getline(cells, c, '\t');) v.push_back(c);
-    ASSERT_EQ(v.size(), 22u) << line;
+  for (const auto& v : SgRows(d.dir / "render.tsv", "studio_diffuse")) {
     const double mean_rel = std::stod(v[9]), bias = std::stod(v[11]);
     std::printf("studio_diffuse against Cycles, %s×%s samples per pixel (contrast %s): mean relative %.4f, bias %.4f\n",
                 v[18].c_str(), v[18].c_str(), v[19].c_str(), mean_rel, bias);
@@ -185,16 +194,10 @@ TEST(BenchRenderGL, StreetFrameIsLitByTheCatcherItsReferenceStandsOn) {
                              "--no-hd " +
                              extra + " --out " + out.string());
     EXPECT_EQ(r.exit_code, 0) << r.err;
-    std::istringstream tsv(ReadText(out / "render.tsv"));
-    for (std::string line; std::getline(tsv, line);) {
-      if (line.rfind("street_a_f10\tsg\t", 0) != 0) continue;
-      std::vector<std::string> v;
-      std::istringstream cells(line);
-      for (std::string c; std::getline(cells, c, '\t');) v.push_back(c);
-      if (v.size() != 22u) break;
-      return std::pair(std::stod(v[9]), std::stod(v[11]));
-    }
-    ADD_FAILURE() << "no sg row of street_a_f10 in " << out / "render.tsv";
+    const auto rows = SgRows(out / "render.tsv", "street_a_f10");
+    if (rows.size() == 1) return std::pair(std::stod(rows[0][9]), std::stod(rows[0][11]));
+    ADD_FAILURE() << rows.size() << " sg rows of street_a_f10 in " << out / "render.tsv"
+                  << ", not 1";
     return std::pair(1.0, 0.0);
   };
   const auto [catcher_error, catcher_bias] = run("");
