@@ -38,7 +38,9 @@ double Median(std::vector<double> v) {
 class Playback {
  public:
   explicit Playback(const PlayerOptions& options)
-      : decoder_(capture::OpenSource(options.video)), clock_(static_cast<int>(decoder_.frame_count()), decoder_.fps()) {
+      : video_(options.video),
+        decoder_(capture::OpenSource(options.video)),
+        clock_(static_cast<int>(decoder_.frame_count()), decoder_.fps()) {
     clock_.SetLoop(options.loop);
     view_.Set(options.view);
     if (decoder_.camera_count() != 1)
@@ -46,15 +48,26 @@ class Playback {
                                      " cameras: play an equirectangular video or stitch the rig first (odvr stitch)");
   }
 
-  // Brings the clock's frame onto the GPU (waiting briefly for the decoder) and draws it.
-  FrameTimings Draw(int width, int height, float exposure) {
+  // Brings the clock's frame onto the GPU and draws it. A window waits briefly for the decoder
+  // and keeps the previous picture when the frame is late (playback goes on); a headless run
+  // writes frame i as file i, so it waits for exactly that frame whatever the machine's load,
+  // and fails naming it if the decoder never delivers.
+  enum class Wait { kBriefly, kForTheFrame };
+  FrameTimings Draw(int width, int height, float exposure, Wait wait = Wait::kBriefly) {
     FrameTimings t;
     const auto start = Clock::now();
     if (decoder_.available_frames() < clock_.frame_count())
       clock_.TruncateTo(static_cast<int>(decoder_.available_frames()));
     const long wanted = clock_.frame();
     if (wanted != shown_index_) {
-      if (auto f = decoder_.Get(wanted, std::chrono::milliseconds(shown_index_ < 0 ? 5000 : 30))) {
+      const std::chrono::milliseconds patience(wait == Wait::kForTheFrame ? kHeadlessFrameWaitMs
+                                               : shown_index_ < 0         ? 5000
+                                                                          : 30);
+      auto f = decoder_.Get(wanted, patience);
+      if (!f && wait == Wait::kForTheFrame)
+        throw Error(video_, "frame " + std::to_string(wanted) + " was not decoded within " +
+                                std::to_string(kHeadlessFrameWaitMs / 1000) + " s");
+      if (f) {
         t.decode_ms = f->decode_ms;
         const cv::Mat& bgr = f->set.frames[0].image;
         if (!bgr.empty()) {  // a corrupt frame keeps the previous picture
@@ -85,6 +98,8 @@ class Playback {
   const std::string& last_event() const { return last_event_; }
 
  private:
+  static constexpr long kHeadlessFrameWaitMs = 60000;
+  std::string video_;
   FrameDecoder decoder_;
   PlaybackClock clock_;
   ViewController view_;
@@ -243,7 +258,8 @@ PlayerReport RunHeadless(const PlayerOptions& options) {
   clock.SetPlaying(false);
   for (int i = 0; i < frames; ++i) {
     clock.Seek(i % clock.frame_count());
-    const FrameTimings t = playback.Draw(options.width, options.height, static_cast<float>(options.exposure));
+    const FrameTimings t = playback.Draw(options.width, options.height, static_cast<float>(options.exposure),
+                                         Playback::Wait::kForTheFrame);
     totals.push_back(t.total_ms);
     report.last = t;
     char name[32];
