@@ -104,7 +104,8 @@ CommandFn AddExport(CLI::App* sub) {
   auto c = std::make_shared<ExportCommand>();
   auto& s = c->scene;
   sub->add_option("--video", s.video, "Equirectangular video or image sequence")->required();
-  sub->add_option("--trajectory", s.trajectory, "Camera poses (trajectory.json)")->required();
+  sub->add_option("--trajectory", s.trajectory, "Camera poses: odvr reconstruct's trajectory.json or trajectory.tum")
+      ->required();
   sub->add_option("--car", s.car, "The car: glTF 2.0 (.glb/.gltf)")->required();
   sub->add_option("--path", c->path, "The drive: keys and durations, e.g. \"W:2s,A:1s\", or a file holding that")
       ->capture_default_str();

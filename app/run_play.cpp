@@ -117,7 +117,8 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_flag("!--no-loop", o.loop, "Stop at the end instead of looping");
   sub->add_option("--quit-after", o.quit_after_s, "Window: close after this many seconds");
   sub->add_option("--screenshot", o.screenshot, "Window: save the last frame shown to this PNG");
-  sub->add_option("--trajectory", o.trajectory, "Augmented mode: camera poses (trajectory.json) placing the car");
+  sub->add_option("--trajectory", o.trajectory,
+                  "Augmented mode: camera poses placing the car (odvr reconstruct's trajectory.json or .tum)");
   sub->add_option("--car", o.car, "Augmented mode: the car, a glTF 2.0 model (.glb/.gltf)");
   sub->add_option("--car-start", o.car_start_m, "Car's start: arc length along the camera path in metres");
   sub->add_option("--view-distance", o.view_distance_m, "The viewer's frame trails the car by this many metres")

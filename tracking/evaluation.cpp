@@ -57,6 +57,50 @@ std::vector<TrajectoryPose> LoadTrajectoryJson(const std::filesystem::path& path
   return poses;
 }
 
+std::vector<TrajectoryPose> LoadTrajectoryTum(const std::filesystem::path& path, double fps) {
+  const std::string where = path.string();
+  if (!(fps > 0)) throw Error(where, "a TUM trajectory needs the video's frame rate to name its frames");
+  std::ifstream in(path);
+  if (!in) throw Error(where, "cannot open");
+  std::vector<TrajectoryPose> poses;
+  std::set<long> seen;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    const std::string at = "line " + std::to_string(number);
+    std::istringstream fields(line);
+    double v[8];
+    for (double& x : v)
+      if (!(fields >> x)) throw Error(where, at + ": expected 8 numbers (timestamp tx ty tz qx qy qz qw)");
+    std::string extra;
+    if (fields >> extra) throw Error(where, at + ": more than 8 fields");
+    for (double x : v)
+      if (!std::isfinite(x)) throw Error(where, at + ": a number is not finite");
+    Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+    if (std::abs(q.norm() - 1) > 1e-3) throw Error(where, at + ": the quaternion is not of unit length");
+    TrajectoryPose p;
+    p.timestamp = v[0];
+    const double frame = std::round(v[0] * fps);
+    if (!(std::abs(frame) < 1e9)) throw Error(where, at + ": timestamp " + std::to_string(v[0]) + " is out of range");
+    p.index = static_cast<long>(frame);
+    p.world_from_rig.topLeftCorner<3, 3>() = q.normalized().toRotationMatrix();
+    p.world_from_rig.topRightCorner<3, 1>() = Eigen::Vector3d(v[1], v[2], v[3]);
+    if (!seen.insert(p.index).second)
+      throw Error(where,
+                  at + ": a second pose for frame " + std::to_string(p.index) + " at " + std::to_string(fps) + " fps");
+    poses.push_back(p);
+  }
+  if (poses.empty()) throw Error(where, "holds no pose");
+  return poses;
+}
+
+std::vector<TrajectoryPose> LoadTrajectory(const std::filesystem::path& path, double fps) {
+  const std::string ext = path.extension().string();
+  if (ext == ".tum" || ext == ".txt") return LoadTrajectoryTum(path, fps);
+  return LoadTrajectoryJson(path);
+}
+
 Similarity3 AlignUmeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
                          bool with_scale) {
   if (src.size() != dst.size())

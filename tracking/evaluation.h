@@ -20,6 +20,13 @@ struct TrajectoryPose {
 // trajectory_gt.json and odvr reconstruct's trajectory.json. Throws odvr::Error naming the file
 // and the problem (missing field, not a rigid transform, repeated index).
 std::vector<TrajectoryPose> LoadTrajectoryJson(const std::filesystem::path& path);
+// TUM's text format, one pose a line: "timestamp tx ty tz qx qy qz qw" (world_from_rig), '#'
+// comments. A line has no frame number: frame = round(timestamp * fps). Throws odvr::Error naming
+// the file and line for a malformed line, a quaternion far from unit length, or two lines on one
+// frame.
+std::vector<TrajectoryPose> LoadTrajectoryTum(const std::filesystem::path& path, double fps);
+// By extension: .tum or .txt read as TUM (at `fps`), anything else as trajectory JSON.
+std::vector<TrajectoryPose> LoadTrajectory(const std::filesystem::path& path, double fps);
 
 // dst ~ scale * rotation * src + translation, least squares (Umeyama 1991).
 struct Similarity3 {

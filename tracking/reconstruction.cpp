@@ -14,6 +14,7 @@
 #include <unordered_map>
 
 #include "engine/core/error.h"
+#include "tracking/central_pose.h"
 #include "tracking/ransac.h"
 #include "tracking/triangulation.h"
 #include "tracking/trifocal.h"
@@ -230,7 +231,9 @@ class Reconstructor {
           Segment s;
           s.camera = c;
           s.first_frame = k;
-          s.tracker = std::make_unique<KltTracker>(out_.rig.cameras[c].model, options_.klt);
+          s.tracker = std::make_unique<KltTracker>(
+              out_.rig.cameras[c].model, options_.klt,
+              static_cast<size_t>(c) < options_.ignore_masks.size() ? options_.ignore_masks[c] : cv::Mat());
           segments_.push_back(std::move(s));
           open[c] = static_cast<int>(segments_.size()) - 1;
         }
@@ -241,7 +244,8 @@ class Reconstructor {
         for (; s.colored < tracks.size(); ++s.colored) {
           const Eigen::Vector2d& p = tracks[s.colored].observations.front().pixel;
           const cv::Vec3b bgr =
-              image.at<cv::Vec3b>(static_cast<int>(std::lround(p.y())), static_cast<int>(std::lround(p.x())));
+              image.at<cv::Vec3b>(std::clamp(static_cast<int>(std::lround(p.y())), 0, image.rows - 1),
+                                  std::clamp(static_cast<int>(std::lround(p.x())), 0, image.cols - 1));
           s.colors.push_back({bgr[2], bgr[1], bgr[0]});
         }
         CameraTrackPoints view;
@@ -469,79 +473,57 @@ class Reconstructor {
 
   // --- initial pair ----------------------------------------------------------------------------
 
+  // The rig's relative pose estimator, or the central one for a camera with one centre.
+  RansacReport<Rigid3> RelativePose(const std::vector<RigBearingPair>& pairs, std::uint64_t seed) const {
+    RansacOptions ro;
+    ro.max_residual = options_.ransac_threshold_px;
+    ro.max_iterations = geometry_.central() ? 1000 : 400;
+    ro.random_seed = seed;
+    if (geometry_.central()) return Ransac<CentralRelativePoseEstimator>(ro, {&geometry_, focal_}).Estimate(pairs);
+    return Ransac<RigRelativePoseEstimator>(ro, {&geometry_, focal_}).Estimate(pairs);
+  }
+
+  // The points seen in both frames a and b, as bearing pairs (the same camera where it can be).
+  std::vector<RigBearingPair> SharedBearings(int a, int b) const {
+    std::vector<RigBearingPair> pairs;
+    for (const auto& p : points_) {
+      const Obs* oa = nullptr;
+      const Obs* ob = nullptr;
+      for (const auto& o : p.obs) {
+        if (o.frame == a && !oa) oa = &o;
+        if (o.frame == b && (!ob || (oa && o.camera == oa->camera))) ob = &o;
+      }
+      if (oa && ob) pairs.push_back({oa->bearing, ob->bearing, oa->camera, ob->camera});
+    }
+    return pairs;
+  }
+
+  // The first pair (a, b), b - a <= max_init_gap, whose rays differ by enough parallax once the
+  // rotation is taken out. The anchor a is frame 0 unless the camera stands still at first (a
+  // clip whose first seconds do not move): then it moves on by half the gap until one is found.
   void Initialize() {
     const auto t0 = Clock::now();
     const int frames = static_cast<int>(used_.size());
     world_from_rig_.assign(frames, Rigid3());
     registered_.assign(frames, 0);
     double best_parallax = 0;
-    int best_frame = -1;
     std::string why = "no later frame shares enough tracked points with frame 0";
-    for (int j = 1; j < frames && j <= options_.max_init_gap; ++j) {
-      std::vector<RigBearingPair> pairs;
-      for (const auto& p : points_) {
-        const Obs* a = nullptr;
-        const Obs* b = nullptr;
-        for (const auto& o : p.obs) {
-          if (o.frame == 0 && !a) a = &o;
-          if (o.frame == j && (!b || (a && o.camera == a->camera))) b = &o;
-        }
-        if (a && b) pairs.push_back({a->bearing, b->bearing, a->camera, b->camera});
+    const int anchor_step = std::max(1, options_.max_init_gap / 2);
+    for (int a = 0; a + 1 < frames && init_frame_ < 0; a += anchor_step) {
+      const InitialPair tried = TryInitialPair(a, &best_parallax, &why);
+      if (tried.frame >= 0) {
+        anchor_ = a;
+        init_frame_ = tried.frame;
+        world_from_rig_[tried.frame] = tried.pose;
+        registered_[a] = registered_[tried.frame] = 1;
       }
-      if (static_cast<int>(pairs.size()) < options_.min_init_inliers) {
-        why = "frames 0 and " + std::to_string(j) + " share only " + std::to_string(pairs.size()) +
-              " tracked points (need " + std::to_string(options_.min_init_inliers) + ")";
-        break;  // later frames share even fewer
-      }
-      // Parallax with the rotation taken out, measured before any translation is estimated: the
-      // best rotation between the two frames' rig-frame rays (Wahba's problem, SVD) and the median
-      // angle left over. A static rig or a pure rotation leaves only noise, and the 17-point
-      // solver's translation would then be noise too.
-      const double rotation_free = RotationFreeParallaxDeg(pairs);
-      best_parallax = std::max(best_parallax, rotation_free);
-      if (rotation_free < options_.min_init_parallax_deg) {
-        Log("initialization: frame 0 -> " + std::to_string(j) + ": median parallax after rotation " +
-            Fixed(rotation_free, 3) + " deg, too little");
-        continue;
-      }
-      RansacOptions ro;
-      ro.max_residual = options_.ransac_threshold_px;
-      ro.max_iterations = 400;
-      ro.random_seed = static_cast<std::uint64_t>(j);
-      RigRelativePoseEstimator estimator;
-      estimator.rig = &geometry_;
-      estimator.focal_px = focal_;
-      const auto result = Ransac<RigRelativePoseEstimator>(ro, estimator).Estimate(pairs);
-      if (!result.success || result.num_inliers < options_.min_init_inliers) {
-        why = "frames 0 and " + std::to_string(j) + ": relative pose " + result.BriefReport();
-        continue;
-      }
-      std::vector<double> parallax;
-      for (size_t i = 0; i < pairs.size(); ++i) {
-        if (!result.inlier_mask[i]) continue;
-        const Eigen::Vector3d d1 = geometry_.rig_from_cam[pairs[i].camera1].rotation * pairs[i].bearing1;
-        const Eigen::Vector3d d2 =
-            result.model.rotation * geometry_.rig_from_cam[pairs[i].camera2].rotation * pairs[i].bearing2;
-        parallax.push_back(AngleBetween(d1, d2) * 180 / M_PI);
-      }
-      std::nth_element(parallax.begin(), parallax.begin() + parallax.size() / 2, parallax.end());
-      const double median = parallax[parallax.size() / 2];
-      Log("initialization: frame 0 -> " + std::to_string(j) + ": " + result.BriefReport() + ", median parallax " +
-          Fixed(median, 3) + " deg");
-      if (median < options_.min_init_parallax_deg) continue;
-      Rigid3 pose = result.model;  // rig0_from_rigj
-      const double length = pose.translation.norm();
-      if (!(length > 1e-9) || !pose.AllFinite()) continue;
-      // The 17-point solver's translation length rests on the 8 cm camera offsets alone; keep it
-      // only as a starting unit, the road fixes the scale below.
-      if (length < 1e-3 || length > 1e3) pose.translation /= length;
-      world_from_rig_[j] = pose;
-      registered_[0] = registered_[j] = 1;
-      init_inliers_ = result.num_inliers;
-      best_frame = j;
-      break;
+      if (!geometry_.central()) break;  // the rig keeps its frame-0 anchor and its messages
     }
-    if (best_frame < 0) {
+    if (init_frame_ < 0) {
+      if (best_parallax < options_.min_init_parallax_deg && geometry_.central()) {
+        StandStill(best_parallax);
+        return;
+      }
       if (best_parallax > 0 && best_parallax < options_.min_init_parallax_deg)
         throw Error("reconstruct", "the rig does not move enough to triangulate: the median parallax between frame " +
                                        std::to_string(used_[0].index) + " and the next " +
@@ -557,27 +539,113 @@ class Reconstructor {
     ApplyRoadScale("initialization");
     TriangulateNew(options_.min_triangulation_angle_deg);
     Stage("initialization", t0, init_inliers_,
-          "relative-pose inliers between frames " + std::to_string(used_[0].index) + " and " +
-              std::to_string(used_[best_frame].index) + ", " + std::to_string(CountTriangulated()) +
+          "relative-pose inliers between frames " + std::to_string(used_[anchor_].index) + " and " +
+              std::to_string(used_[init_frame_].index) + ", " + std::to_string(CountTriangulated()) +
               " points triangulated");
   }
 
+  struct InitialPair {
+    int frame = -1;
+    Rigid3 pose;  // anchor_from_frame
+  };
+
+  InitialPair TryInitialPair(int a, double* best_parallax, std::string* why) {
+    const int frames = static_cast<int>(used_.size());
+    for (int j = a + 1; j < frames && j <= a + options_.max_init_gap; ++j) {
+      const std::vector<RigBearingPair> pairs = SharedBearings(a, j);
+      const std::string names = "frames " + std::to_string(used_[a].index) + " and " + std::to_string(used_[j].index);
+      if (static_cast<int>(pairs.size()) < options_.min_init_inliers) {
+        *why = names + " share only " + std::to_string(pairs.size()) + " tracked points (need " +
+               std::to_string(options_.min_init_inliers) + ")";
+        break;  // later frames share even fewer
+      }
+      // Parallax with the rotation taken out, measured before any translation is estimated: the
+      // best rotation between the two frames' rig-frame rays (Wahba's problem, SVD) and the median
+      // angle left over. A static rig or a pure rotation leaves only noise, and a solver's
+      // translation would then be noise too.
+      const double rotation_free = RotationFreeParallaxDeg(pairs);
+      *best_parallax = std::max(*best_parallax, rotation_free);
+      if (rotation_free < options_.min_init_parallax_deg) {
+        Log("initialization: " + names + ": median parallax after rotation " + Fixed(rotation_free, 3) +
+            " deg, too little");
+        continue;
+      }
+      const auto result = RelativePose(pairs, static_cast<std::uint64_t>(j));
+      if (!result.success || result.num_inliers < options_.min_init_inliers) {
+        *why = names + ": relative pose " + result.BriefReport();
+        continue;
+      }
+      std::vector<double> parallax;
+      for (size_t i = 0; i < pairs.size(); ++i) {
+        if (!result.inlier_mask[i]) continue;
+        const Eigen::Vector3d d1 = geometry_.rig_from_cam[pairs[i].camera1].rotation * pairs[i].bearing1;
+        const Eigen::Vector3d d2 =
+            result.model.rotation * geometry_.rig_from_cam[pairs[i].camera2].rotation * pairs[i].bearing2;
+        parallax.push_back(AngleBetween(d1, d2) * 180 / M_PI);
+      }
+      std::nth_element(parallax.begin(), parallax.begin() + parallax.size() / 2, parallax.end());
+      const double median = parallax[parallax.size() / 2];
+      Log("initialization: " + names + ": " + result.BriefReport() + ", median parallax " + Fixed(median, 3) + " deg");
+      if (median < options_.min_init_parallax_deg) continue;
+      Rigid3 pose = result.model;  // rig_a_from_rig_j
+      const double length = pose.translation.norm();
+      if (!(length > 1e-9) || !pose.AllFinite()) continue;
+      // The 17-point solver's translation length rests on the 8 cm camera offsets alone (a central
+      // camera's is 1): keep it only as a starting unit, the road fixes the scale below.
+      if (length < 1e-3 || length > 1e3) pose.translation /= length;
+      init_inliers_ = result.num_inliers;
+      return {j, pose};
+    }
+    return {};
+  }
+
   double RotationFreeParallaxDeg(const std::vector<RigBearingPair>& pairs) const {
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
     std::vector<Eigen::Vector3d> d1, d2;
     for (const auto& p : pairs) {
       d1.push_back(geometry_.rig_from_cam[p.camera1].rotation * p.bearing1);
       d2.push_back(geometry_.rig_from_cam[p.camera2].rotation * p.bearing2);
-      cov += d1.back() * d2.back().transpose();
     }
-    Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d fix = Eigen::Matrix3d::Identity();
-    if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0) fix(2, 2) = -1;
-    const Eigen::Matrix3d r = svd.matrixU() * fix * svd.matrixV().transpose();  // d1 ~ r d2
+    const Eigen::Matrix3d r = BestRotation(d1, d2);  // d1 ~ r d2
     std::vector<double> angles;
     for (size_t i = 0; i < d1.size(); ++i) angles.push_back(AngleBetween(d1[i], r * d2[i]) * 180 / M_PI);
     std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
     return angles[angles.size() / 2];
+  }
+
+  // A central camera that never moves enough to triangulate (a tripod, a pure rotation) still
+  // gets a pose for every frame, so that a car can stand in its scene: one position, and the
+  // rotation from frame to frame by Wahba's problem over the tracks they share (the 25 % worst
+  // rays of each pair dropped and the rotation fitted again).
+  void StandStill(double best_parallax) {
+    const int frames = static_cast<int>(used_.size());
+    out_.warnings.push_back("the camera does not move enough to triangulate (median parallax at most " +
+                            Fixed(best_parallax, 3) +
+                            " deg): a tripod or a pure rotation; every frame stands at one "
+                            "position and only its rotation is tracked");
+    standing_still_ = true;
+    for (int f = 0; f < frames; ++f) registered_[f] = 1;
+    for (int f = 1; f < frames; ++f) {
+      const std::vector<RigBearingPair> pairs = SharedBearings(f - 1, f);
+      Eigen::Matrix3d r = Eigen::Matrix3d::Identity();  // rig_{f-1}_from_rig_f
+      if (pairs.size() >= 3) {
+        std::vector<Eigen::Vector3d> d1, d2;
+        for (const auto& p : pairs) {
+          d1.push_back(geometry_.rig_from_cam[p.camera1].rotation * p.bearing1);
+          d2.push_back(geometry_.rig_from_cam[p.camera2].rotation * p.bearing2);
+        }
+        r = BestRotation(d1, d2);
+        std::vector<std::pair<double, int>> errors;
+        for (size_t i = 0; i < d1.size(); ++i) errors.emplace_back(AngleBetween(d1[i], r * d2[i]), static_cast<int>(i));
+        std::sort(errors.begin(), errors.end());
+        std::vector<Eigen::Vector3d> k1, k2;
+        for (size_t i = 0; i < std::max<size_t>(3, errors.size() * 3 / 4); ++i) {
+          k1.push_back(d1[errors[i].second]);
+          k2.push_back(d2[errors[i].second]);
+        }
+        r = BestRotation(k1, k2);
+      }
+      world_from_rig_[f].rotation = world_from_rig_[f - 1].rotation * r;
+    }
   }
 
   // --- registration ----------------------------------------------------------------------------
@@ -585,12 +653,12 @@ class Reconstructor {
   void RegisterAll() {
     const auto t0 = Clock::now();
     const int frames = static_cast<int>(used_.size());
+    if (standing_still_) return;
+    // Outwards from the initial pair: the frames between it, those before the anchor, after it.
     std::vector<int> order;
-    int init = 0;
-    for (int f = 1; f < frames; ++f)
-      if (registered_[f]) init = f;
-    for (int f = init - 1; f >= 1; --f) order.push_back(f);
-    for (int f = init + 1; f < frames; ++f) order.push_back(f);
+    for (int f = init_frame_ - 1; f > anchor_; --f) order.push_back(f);
+    for (int f = anchor_ - 1; f >= 0; --f) order.push_back(f);
+    for (int f = init_frame_ + 1; f < frames; ++f) order.push_back(f);
     int since_bundle = 0, done = 2, inliers = 0;
     for (int f : order) {
       inliers += Register(f);
@@ -631,10 +699,9 @@ class Reconstructor {
     ro.max_residual = options_.ransac_threshold_px;
     ro.max_iterations = 1000;
     ro.random_seed = static_cast<std::uint64_t>(f);
-    RigAbsolutePoseEstimator estimator;
-    estimator.rig = &geometry_;
-    estimator.focal_px = focal_;
-    const auto result = Ransac<RigAbsolutePoseEstimator>(ro, estimator).Estimate(data);
+    const bool central = geometry_.central();
+    const auto result = central ? Ransac<CentralAbsolutePoseEstimator>(ro, {&geometry_, focal_}).Estimate(data)
+                                : Ransac<RigAbsolutePoseEstimator>(ro, {&geometry_, focal_}).Estimate(data);
     if (!result.success || result.num_inliers < options_.min_pose_inliers)
       throw Error(frame_name, "cannot be registered: " + std::to_string(result.num_inliers) + " of " +
                                   std::to_string(data.size()) + " 2D-3D matches agree on a pose (need " +
@@ -642,12 +709,13 @@ class Reconstructor {
     std::vector<RigBearingPoint> inliers;
     for (size_t i = 0; i < data.size(); ++i)
       if (result.inlier_mask[i]) inliers.push_back(data[i]);
-    Rigid3 pose = RefineAbsolutePose(geometry_, inliers, result.model);
+    Rigid3 pose = central ? RefineCentralAbsolutePose(geometry_, inliers, result.model)
+                          : RefineAbsolutePose(geometry_, inliers, result.model);
     if (!pose.AllFinite()) throw Error(frame_name, "the pose estimate is not finite");
     world_from_rig_[f] = pose;
     registered_[f] = 1;
     std::vector<double> residuals;
-    estimator.Residuals(data, pose, &residuals);
+    RigAbsolutePoseEstimator{&geometry_, focal_}.Residuals(data, pose, &residuals);
     int agreeing = 0;
     for (size_t i = 0; i < data.size(); ++i) {
       const bool ok = residuals[i] <= options_.ransac_threshold_px;
@@ -694,7 +762,7 @@ class Reconstructor {
     problem.rig = geometry_;
     problem.world_from_rig = world_from_rig_;
     problem.pose_constant.assign(world_from_rig_.size(), 0);
-    problem.pose_constant[0] = 1;
+    problem.pose_constant[static_cast<size_t>(anchor_)] = 1;
     std::vector<int> index_of(points_.size(), -1);
     for (int i = 0; i < static_cast<int>(points_.size()); ++i) {
       const MapPoint& p = points_[i];
@@ -708,17 +776,18 @@ class Reconstructor {
         problem.observations.push_back({o.frame, o.camera, index_of[i], o.bearing});
       }
     }
-    if (metric_) {
-      // The registered frame farthest from frame 0 keeps its distance: the scale the road gave.
-      int far = 0;
+    if (metric_ || geometry_.central()) {
+      // The registered frame farthest from the anchor keeps its distance: the scale the road gave
+      // or, for a central camera (whose offsets fix no scale), the initial pair's unit.
+      int far = -1;
       double distance = 0;
-      for (size_t f = 1; f < world_from_rig_.size(); ++f) {
-        const double d = (world_from_rig_[f].translation - world_from_rig_[0].translation).norm();
+      for (size_t f = 0; f < world_from_rig_.size(); ++f) {
+        const double d = (world_from_rig_[f].translation - world_from_rig_[anchor_].translation).norm();
         if (registered_[f] && d > distance) distance = d, far = static_cast<int>(f);
       }
-      if (far > 0 && distance > 0) {
+      if (far >= 0 && distance > 0) {
         problem.scale_prior.enabled = true;
-        problem.scale_prior.frame_a = 0;
+        problem.scale_prior.frame_a = anchor_;
         problem.scale_prior.frame_b = far;
         problem.scale_prior.distance = distance;
         problem.scale_prior.sigma = 1e-4 * distance;
@@ -799,6 +868,14 @@ class Reconstructor {
 
   void Finish() {
     auto t0 = Clock::now();
+    if (standing_still_) {
+      PlaceStandingCamera();
+      Stage("metric scale", t0, 0, "no motion: the camera placed " + Fixed(out_.road.rig_height) + " above z = 0");
+      t0 = Clock::now();
+      Export();
+      Stage("export", t0, 0, "points");
+      return;
+    }
     BundleAdjust(options_.bundle.max_iterations);
     int removed = RemoveOutliers();
     TriangulateNew(options_.min_triangulation_angle_deg);
@@ -810,12 +887,14 @@ class Reconstructor {
 
     t0 = Clock::now();
     if (!(out_.rig_height_m > 0)) {
-      out_.warnings.push_back("the rig file gives no rig_height_m: the reconstruction keeps an arbitrary scale");
+      out_.warnings.push_back(out_.rig.path.empty()
+                                  ? "no camera height given: the trajectory is up to scale (not metres)"
+                                  : "the rig file gives no rig_height_m: the reconstruction keeps an arbitrary scale");
     } else {
       ApplyRoadScale("after bundle adjustment");
       if (!metric_) {
         out_.warnings.push_back("no road plane found below the rig: the scale is not metric");
-      } else {
+      } else if (!geometry_.central()) {
         // The camera offsets are metric: the rescaled world is adjusted once more so they agree,
         // holding the scale where the road put it.
         BundleAdjust(options_.bundle.max_iterations);
@@ -857,6 +936,24 @@ class Reconstructor {
     out_.road = FitRoadPlane(TriangulatedPoints(), RegisteredPoses(), out_.rig_height_m, options_.road);
   }
 
+  // A camera that never moved: the world's z axis is frame 0's up, the road is z = 0 and the
+  // camera stands at its height above it (the given height, else 1 unit, said in a warning).
+  void PlaceStandingCamera() {
+    const bool metric = out_.rig_height_m > 0;
+    const double height = metric ? out_.rig_height_m : 1.0;
+    if (!metric) out_.warnings.push_back("no camera height given: the camera stands 1 unit above the road");
+    const Eigen::Matrix3d new_from_old = world_from_rig_[0].rotation.transpose();
+    for (auto& pose : world_from_rig_) {
+      pose.rotation = new_from_old * pose.rotation;
+      pose.translation = Eigen::Vector3d(0, 0, height);
+    }
+    out_.road = RoadPlane();
+    out_.road.rig_height = height;
+    out_.road.message = "no road plane measured (the camera does not move); the road is assumed " + Fixed(height) +
+                        (metric ? " m" : " units") + " below the camera";
+    out_.scale_source = metric ? out_.scale_source : "";
+  }
+
   void Export() {
     // Output frames: the used ones in order, with duplicates re-inserted after their original.
     std::vector<int> out_of_used(used_.size());
@@ -893,7 +990,11 @@ class Reconstructor {
         const Eigen::Vector3d in_cam = CamPose(geometry_, world_from_rig_[o.frame], o.camera) * p.x;
         Eigen::Vector2d pixel;
         if (!cam.model.Project(in_cam, &pixel)) continue;
-        const double e2 = (pixel - o.pixel).squaredNorm();
+        Eigen::Vector2d d = pixel - o.pixel;
+        // An equirect image's columns wrap: an observation at the seam may project onto the other side.
+        if (cam.model.type() == capture::CameraModelType::kEquirectangular)
+          d.x() = std::remainder(d.x(), static_cast<double>(cam.model.width()));
+        const double e2 = d.squaredNorm();
         psq += e2;
         sq += e2;
         ++n;
@@ -959,6 +1060,9 @@ class Reconstructor {
   std::vector<Rigid3> world_from_rig_;
   std::vector<char> registered_;
   int init_inliers_ = 0;
+  int anchor_ = 0;               // the initial pair's first frame: the world's origin until AlignToRoad
+  int init_frame_ = -1;          // its second
+  bool standing_still_ = false;  // a central camera that never moved: rotations only
   BundleAdjustmentReport last_bundle_;
   bool metric_ = false;  // a road scale was applied; bundle adjustments then hold the scale
 };

@@ -2,7 +2,10 @@
 // Offline structure from motion for the calibrated rig (seed §5.3.2, DESIGN.md §6): per-camera
 // KLT tracks, cross-camera SIFT links, an initial pair from the non-central relative pose,
 // frame-by-frame registration by the non-central absolute pose, DLT triangulation, Ceres bundle
-// adjustment with the extrinsics fixed, and metric scale from the road plane. The result sits in
+// adjustment with the extrinsics fixed, and metric scale from the road plane. A rig whose cameras
+// share one centre (one equirectangular camera: a consumer 360° video) takes the central solvers
+// of central_pose.h instead, its scale held by the initial pair until the road gives one; if it
+// never moves enough to triangulate, every frame keeps one position and its tracked rotation. The result sits in
 // a world whose z = 0 plane is the fitted road, z up, origin below the first rig pose and x along
 // its heading: the Z-up convention of the datasets (odvr's Y-up world is (x, z, -y) of it).
 #include <Eigen/Core>
@@ -26,6 +29,9 @@ struct ReconstructionOptions {
   CrossCameraOptions links;
   BundleAdjustmentOptions bundle;
   RoadPlaneOptions road;
+  // Per rig camera (optional): non-zero where its images show no part of the world (a car roof,
+  // the operator, a tripod); KltTracker's `ignore` mask.
+  std::vector<cv::Mat> ignore_masks;
   double rig_height_m = 0;  // > 0 overrides the rig file's height
   long max_frames = 0;      // frame sets read from the source (0: all)
   // RANSAC thresholds of the relative and absolute pose (pixels at the camera's focal length).

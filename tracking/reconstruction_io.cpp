@@ -105,9 +105,8 @@ std::string CamerasTxt(const Reconstruction& r) {
         for (double k : m.distortion()) params.push_back(k);
         params.resize(12, 0.0);
         break;
-      case capture::CameraModelType::kEquirectangular:
-        throw Error("COLMAP export",
-                    "camera " + r.rig.cameras[c].name + " is equirectangular, which COLMAP has no model for");
+      case capture::CameraModelType::kEquirectangular:  // AsCubeFaces replaced it
+        throw Error("COLMAP export", "camera " + r.rig.cameras[c].name + " is equirectangular");
     }
     s << c + 1 << " " << model << " " << m.width() << " " << m.height();
     for (double p : params) s << " " << Num(p);
@@ -187,6 +186,75 @@ std::string RoadPlaneJson(const Reconstruction& r) {
          "\n";
 }
 
+// COLMAP has no equirectangular camera; its users split 360° frames into six 90° cube faces.
+// The same here: each equirect camera becomes six pinhole cameras at its centre (front, right,
+// back, left, up, down; each face's OpenCV axes in the camera's), and each observation goes to
+// the face its bearing points into, at that face's pixel. Other cameras pass unchanged.
+Reconstruction AsCubeFaces(const Reconstruction& r) {
+  bool any = false;
+  for (const auto& cam : r.rig.cameras) any |= cam.model.type() == capture::CameraModelType::kEquirectangular;
+  if (!any) return r;
+  struct Face {
+    const char* name;
+    Eigen::Vector3d z, y;  // optical axis and image down, in the equirect camera's frame
+  };
+  static const Face kFaces[6] = {{"front", {0, 0, 1}, {0, 1, 0}}, {"right", {1, 0, 0}, {0, 1, 0}},
+                                 {"back", {0, 0, -1}, {0, 1, 0}}, {"left", {-1, 0, 0}, {0, 1, 0}},
+                                 {"up", {0, -1, 0}, {0, 0, 1}},   {"down", {0, 1, 0}, {0, 0, -1}}};
+  Reconstruction out;
+  out.rig.path = r.rig.path;
+  out.rig.height_m = r.rig.height_m;
+  out.frames = r.frames;
+  std::vector<int> first_face(r.rig.cameras.size());  // the camera's first index in out.rig
+  std::vector<Eigen::Matrix3d> cam_from_face(6);
+  for (int k = 0; k < 6; ++k) {
+    cam_from_face[k].col(2) = kFaces[k].z;
+    cam_from_face[k].col(1) = kFaces[k].y;
+    cam_from_face[k].col(0) = kFaces[k].y.cross(kFaces[k].z);
+  }
+  for (size_t c = 0; c < r.rig.cameras.size(); ++c) {
+    const auto& cam = r.rig.cameras[c];
+    first_face[c] = out.rig.camera_count();
+    if (cam.model.type() != capture::CameraModelType::kEquirectangular) {
+      out.rig.cameras.push_back(cam);
+      continue;
+    }
+    const int size = std::max(2, cam.model.width() / 4);
+    for (int k = 0; k < 6; ++k) {
+      capture::RigCamera face;
+      face.name = cam.name + "_" + kFaces[k].name;
+      face.model = capture::CameraModel::Pinhole(size, size, size / 2.0, size / 2.0, (size - 1) / 2.0, (size - 1) / 2.0,
+                                                 {0, 0, 0, 0, 0});
+      face.rig_from_cam = cam.rig_from_cam;
+      face.rig_from_cam.topLeftCorner<3, 3>() = cam.rig_from_cam.topLeftCorner<3, 3>() * cam_from_face[k];
+      out.rig.cameras.push_back(face);
+    }
+  }
+  for (const auto& pt : r.points) {
+    ReconstructedPoint q = pt;
+    q.observations.clear();
+    for (const auto& o : pt.observations) {
+      if (r.rig.cameras[o.camera].model.type() != capture::CameraModelType::kEquirectangular) {
+        q.observations.push_back(o);
+        q.observations.back().camera = first_face[o.camera];
+        continue;
+      }
+      int best = 0;
+      for (int k = 1; k < 6; ++k)
+        if (o.bearing.dot(kFaces[k].z) > o.bearing.dot(kFaces[best].z)) best = k;
+      PointObservation f = o;
+      f.camera = first_face[o.camera] + best;
+      f.bearing = cam_from_face[best].transpose() * o.bearing;
+      const auto& m = out.rig.cameras[f.camera].model;
+      f.pixel = Eigen::Vector2d(m.fx() * f.bearing.x() / f.bearing.z() + m.cx(),
+                                m.fy() * f.bearing.y() / f.bearing.z() + m.cy());
+      q.observations.push_back(f);
+    }
+    out.points.push_back(std::move(q));
+  }
+  return out;
+}
+
 }  // namespace
 
 std::string ReconstructionSummaryJson(const Reconstruction& r) {
@@ -246,9 +314,10 @@ void WriteReconstruction(const Reconstruction& r, const fs::path& dir, const std
   fs::create_directories(dir);
   WriteTextAtomically(dir / "trajectory.json", TrajectoryJson(r));
   WriteTextAtomically(dir / "trajectory.tum", TrajectoryTum(r));
-  WriteTextAtomically(dir / "cameras.txt", CamerasTxt(r));
+  const Reconstruction colmap = AsCubeFaces(r);
+  WriteTextAtomically(dir / "cameras.txt", CamerasTxt(colmap));
   std::string images, points;
-  ColmapModel(r, &images, &points);
+  ColmapModel(colmap, &images, &points);
   WriteTextAtomically(dir / "images.txt", images);
   WriteTextAtomically(dir / "points3D.txt", points);
   WriteTextAtomically(dir / "road_plane.json", RoadPlaneJson(r));

@@ -45,23 +45,27 @@ struct AbsolutePoseInput {
   std::optional<opengv::absolute_pose::NoncentralAbsoluteAdapter> adapter;  // made once the arrays are full
 };
 
-bool Orthonormal(const Eigen::Matrix3d& r) {
+}  // namespace
+
+bool IsRotation(const Eigen::Matrix3d& r) {
   return r.allFinite() && (r.transpose() * r - Eigen::Matrix3d::Identity()).norm() < 1e-6 && r.determinant() > 0;
 }
 
-Rigid3 FromTransformation(const opengv::transformation_t& t) {
+Rigid3 RigidFromOpenGv(const Eigen::Matrix<double, 3, 4>& transformation) {
   Rigid3 out;
-  out.rotation = t.leftCols<3>();
-  out.translation = t.col(3);
-  // gPnP and the 17-point solver return a rotation only up to numerical noise: project it back
-  // onto SO(3) so composing many frames does not accumulate shear.
+  out.rotation = transformation.leftCols<3>();
+  out.translation = transformation.col(3);
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(out.rotation, Eigen::ComputeFullU | Eigen::ComputeFullV);
   out.rotation = svd.matrixU() * svd.matrixV().transpose();
   if (out.rotation.determinant() < 0) out.rotation = -out.rotation;
   return out;
 }
 
-}  // namespace
+bool RigGeometry::central() const {
+  for (const Rigid3& c : rig_from_cam)
+    if ((c.translation - rig_from_cam.front().translation).norm() > 1e-6) return false;
+  return true;
+}
 
 Eigen::Matrix4d Rigid3::Matrix() const {
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
@@ -109,8 +113,8 @@ std::vector<Rigid3> RigRelativePoseEstimator::Estimate(const std::vector<RigBear
   opengv::rotations_t rotations;
   CameraArrays(*rig, &offsets, &rotations);
   opengv::relative_pose::NoncentralRelativeAdapter adapter(b1, b2, c1, c2, offsets, rotations);
-  const Rigid3 pose = FromTransformation(opengv::relative_pose::seventeenpt(adapter));
-  if (!pose.AllFinite() || !Orthonormal(pose.rotation)) return {};
+  const Rigid3 pose = RigidFromOpenGv(opengv::relative_pose::seventeenpt(adapter));
+  if (!pose.AllFinite() || !IsRotation(pose.rotation)) return {};
   return {pose};
 }
 
@@ -132,13 +136,13 @@ std::vector<Rigid3> RigAbsolutePoseEstimator::Estimate(const std::vector<RigBear
   std::vector<Rigid3> out;
   if (data.size() == 3) {
     for (const auto& t : opengv::absolute_pose::gp3p(adapter, 0, 1, 2)) {
-      const Rigid3 pose = FromTransformation(t);
-      if (pose.AllFinite() && Orthonormal(pose.rotation)) out.push_back(pose);
+      const Rigid3 pose = RigidFromOpenGv(t);
+      if (pose.AllFinite() && IsRotation(pose.rotation)) out.push_back(pose);
     }
   } else if (data.size() >= 6) {
     // gPnP for the least-squares refit; the minimal solver's best candidate otherwise.
-    const Rigid3 pose = FromTransformation(opengv::absolute_pose::gpnp(adapter));
-    if (pose.AllFinite() && Orthonormal(pose.rotation)) out.push_back(pose);
+    const Rigid3 pose = RigidFromOpenGv(opengv::absolute_pose::gpnp(adapter));
+    if (pose.AllFinite() && IsRotation(pose.rotation)) out.push_back(pose);
   }
   return out;
 }
@@ -159,8 +163,8 @@ Rigid3 RefineAbsolutePose(const RigGeometry& rig, const std::vector<RigBearingPo
   auto& adapter = *input.adapter;
   adapter.setR(initial.rotation);
   adapter.sett(initial.translation);
-  const Rigid3 refined = FromTransformation(opengv::absolute_pose::optimize_nonlinear(adapter));
-  return refined.AllFinite() && Orthonormal(refined.rotation) ? refined : initial;
+  const Rigid3 refined = RigidFromOpenGv(opengv::absolute_pose::optimize_nonlinear(adapter));
+  return refined.AllFinite() && IsRotation(refined.rotation) ? refined : initial;
 }
 
 }  // namespace odvr::tracking

@@ -32,7 +32,16 @@ struct RigGeometry {
 
   static RigGeometry FromRig(const capture::Rig& rig);
   int camera_count() const { return static_cast<int>(rig_from_cam.size()); }
+  // Every camera at one centre (one camera, or offsets under a micrometre): the rig is then a
+  // central camera and needs the central solvers (central_pose.h).
+  bool central() const;
 };
+
+// OpenGV's [R | t] as a Rigid3, its rotation projected back onto SO(3) (the linear solvers
+// return one only up to numerical noise, and composing many frames would accumulate shear).
+Rigid3 RigidFromOpenGv(const Eigen::Matrix<double, 3, 4>& transformation);
+// A proper rotation to 1e-6.
+bool IsRotation(const Eigen::Matrix3d& r);
 
 // The same scene point seen in rig frame 1 by camera1 and in rig frame 2 by camera2 (any two
 // cameras: a point that moved from the front camera into a side one still constrains the motion).

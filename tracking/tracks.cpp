@@ -1,5 +1,6 @@
 #include "tracking/tracks.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
@@ -26,9 +27,12 @@ void KltOptions::Check() const {
   if (!(max_angle_deg >= 0 && max_angle_deg <= 180)) throw Error("klt max_angle_deg", "must be in [0, 180]");
 }
 
-KltTracker::KltTracker(const capture::CameraModel& model, const KltOptions& options)
+KltTracker::KltTracker(const capture::CameraModel& model, const KltOptions& options, const cv::Mat& ignore)
     : model_(model), options_(options) {
   options_.Check();
+  // A window at the top pyramid level reaches window << (levels - 1) pixels: pad by that much.
+  if (model_.type() == capture::CameraModelType::kEquirectangular)
+    wrap_ = std::min(model_.width(), options_.window_px << (options_.pyramid_levels - 1));
   const int w = model_.width(), h = model_.height();
   const double max_theta = options_.max_angle_deg > 0
                                ? std::min(model_.max_theta(), options_.max_angle_deg * M_PI / 180)
@@ -47,8 +51,16 @@ KltTracker::KltTracker(const capture::CameraModel& model, const KltOptions& opti
     cv::erode(mask_, mask_, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * b + 1, 2 * b + 1)));
     mask_.rowRange(0, std::min(b, h)).setTo(0);
     mask_.rowRange(std::max(0, h - b), h).setTo(0);
-    mask_.colRange(0, std::min(b, w)).setTo(0);
-    mask_.colRange(std::max(0, w - b), w).setTo(0);
+    if (wrap_ == 0) {  // an equirect image's side edges are no edge
+      mask_.colRange(0, std::min(b, w)).setTo(0);
+      mask_.colRange(std::max(0, w - b), w).setTo(0);
+    }
+  }
+  if (!ignore.empty()) {
+    if (ignore.cols != w || ignore.rows != h || ignore.type() != CV_8U)
+      throw Error("klt mask", "is " + std::to_string(ignore.cols) + "x" + std::to_string(ignore.rows) +
+                                  " but the camera model is " + model_.Describe() + " (an 8-bit image of its size)");
+    mask_.setTo(0, ignore);
   }
   const int c = options_.cell_size_px;
   for (int y = 0; y < h; y += c)
@@ -56,8 +68,15 @@ KltTracker::KltTracker(const capture::CameraModel& model, const KltOptions& opti
       valid_cells_ += cv::countNonZero(mask_(cv::Rect(x, y, std::min(c, w - x), std::min(c, h - y)))) > 0;
 }
 
-bool KltTracker::Observe(const Eigen::Vector2d& pixel, TrackObservation* observation) const {
-  const int x = static_cast<int>(std::lround(pixel.x())), y = static_cast<int>(std::lround(pixel.y()));
+bool KltTracker::Observe(Eigen::Vector2d pixel, TrackObservation* observation) const {
+  if (wrap_ > 0 && std::isfinite(pixel.x())) {
+    const double w = model_.width();
+    pixel.x() = std::fmod(std::fmod(pixel.x(), w) + w, w);
+    if (pixel.x() >= w - 0.5) pixel.x() -= w;  // x in [-0.5, w - 0.5): nearest column 0 .. w - 1
+  }
+  int x = static_cast<int>(std::lround(pixel.x()));
+  const int y = static_cast<int>(std::lround(pixel.y()));
+  if (wrap_ > 0) x = std::clamp(x, 0, mask_.cols - 1);
   if (!pixel.allFinite() || x < 0 || y < 0 || x >= mask_.cols || y >= mask_.rows) return false;
   if (mask_.at<uint8_t>(y, x) == 0) return false;
   observation->pixel = pixel;
@@ -79,27 +98,37 @@ const KltFrameStats& KltTracker::AddFrame(const cv::Mat& image) {
     cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
   else
     gray = image.clone();
-  if (options_.presmooth_sigma_px > 0) cv::GaussianBlur(gray, gray, cv::Size(0, 0), options_.presmooth_sigma_px);
+  if (options_.presmooth_sigma_px > 0) {
+    // An equirect frame is smoothed across its seam too.
+    const int pad = wrap_ > 0 ? std::min(gray.cols, static_cast<int>(std::ceil(4 * options_.presmooth_sigma_px))) : 0;
+    cv::Mat wrapped;
+    cv::copyMakeBorder(gray, wrapped, 0, 0, pad, pad, cv::BORDER_WRAP);
+    cv::GaussianBlur(wrapped, wrapped, cv::Size(0, 0), options_.presmooth_sigma_px);
+    gray = wrapped.colRange(pad, pad + gray.cols).clone();
+  }
+  cv::Mat padded = gray;
+  if (wrap_ > 0) cv::copyMakeBorder(gray, padded, 0, 0, wrap_, wrap_, cv::BORDER_WRAP);
 
   if (!previous_.empty() && !active_.empty()) {
     std::vector<cv::Point2f> from, to, back;
+    const auto shift = static_cast<float>(wrap_);
     for (int t : active_) {
       const Eigen::Vector2d& p = tracks_[t].observations.back().pixel;
-      from.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+      from.emplace_back(static_cast<float>(p.x()) + shift, static_cast<float>(p.y()));
     }
     const cv::Size window(options_.window_px, options_.window_px);
     const cv::TermCriteria criteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, options_.max_lk_iterations, 0.01);
     std::vector<uchar> status, status_back;
     std::vector<float> error;
-    cv::calcOpticalFlowPyrLK(previous_, gray, from, to, status, error, window, options_.pyramid_levels - 1, criteria);
-    cv::calcOpticalFlowPyrLK(gray, previous_, to, back, status_back, error, window, options_.pyramid_levels - 1,
+    cv::calcOpticalFlowPyrLK(previous_, padded, from, to, status, error, window, options_.pyramid_levels - 1, criteria);
+    cv::calcOpticalFlowPyrLK(padded, previous_, to, back, status_back, error, window, options_.pyramid_levels - 1,
                              criteria);
     std::vector<int> still_active;
     for (size_t i = 0; i < active_.size(); ++i) {
       Track& track = tracks_[active_[i]];
       TrackObservation obs;
       obs.frame = stats.frame;
-      if (!status[i] || !Observe(Eigen::Vector2d(to[i].x, to[i].y), &obs)) {
+      if (!status[i] || !Observe(Eigen::Vector2d(to[i].x - shift, to[i].y), &obs)) {
         ++stats.lost_lk;
         track.active = false;
       } else if (!status_back[i] ||
@@ -115,7 +144,7 @@ const KltFrameStats& KltTracker::AddFrame(const cv::Mat& image) {
     active_ = std::move(still_active);
   }
   Detect(gray, &stats);
-  previous_ = gray;
+  previous_ = padded;
   stats.active = static_cast<int>(active_.size());
   stats_.push_back(stats);
   return stats_.back();

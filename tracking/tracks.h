@@ -4,6 +4,10 @@
 // stays covered. The seed prefers LK to descriptor matching because it keeps tracks long, and
 // long tracks tie many rig poses together.
 //
+// An equirectangular image wraps around: its left and right edges are one meridian. The tracker
+// pads each frame with the columns from the other side, so a track crossing the seam goes on and
+// its pixel is wrapped back into the image.
+//
 // Tracking runs on the camera's own image, not an undistorted one: a 160-degree fisheye has no
 // pinhole image that keeps its field of view, and LK only needs locally smooth motion. Every
 // observation carries its unit bearing through capture/camera_model.h, which is what the
@@ -75,8 +79,11 @@ struct KltFrameStats {
 
 class KltTracker {
  public:
-  // Throws odvr::Error for bad options.
-  KltTracker(const capture::CameraModel& model, const KltOptions& options = KltOptions());
+  // Throws odvr::Error for bad options or an `ignore` mask of another size than the model's.
+  // `ignore` (8-bit, optional): non-zero where the image shows no part of the world to track
+  // (a car roof, the operator, a tripod); no corner is detected there and tracks entering it end.
+  KltTracker(const capture::CameraModel& model, const KltOptions& options = KltOptions(),
+             const cv::Mat& ignore = cv::Mat());
 
   // The next frame (8-bit gray or BGR, the model's size). Throws odvr::Error("klt frame N", ...)
   // for an empty image or one whose size contradicts the camera model.
@@ -94,12 +101,13 @@ class KltTracker {
 
  private:
   void Detect(const cv::Mat& gray, KltFrameStats* stats);
-  bool Observe(const Eigen::Vector2d& pixel, TrackObservation* observation) const;
+  bool Observe(Eigen::Vector2d pixel, TrackObservation* observation) const;
 
   capture::CameraModel model_;
   KltOptions options_;
   cv::Mat mask_;
-  cv::Mat previous_;
+  cv::Mat previous_;  // the last frame, smoothed and (equirect) padded by wrap_ columns a side
+  int wrap_ = 0;
   std::vector<Track> tracks_;
   std::vector<int> active_;  // indices into tracks_
   std::vector<KltFrameStats> stats_;

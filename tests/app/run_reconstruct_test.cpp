@@ -101,4 +101,49 @@ TEST(RunReconstruct, CameraCountMismatchNamesBothSides) {
   EXPECT_NE(r.err.find("delivers 1 cameras but the rig file"), std::string::npos) << r.err;
 }
 
+// One 360° camera and no rig: the demo's equirect clip (in the repository) from the command line
+// to a trajectory that play reads back as TUM, with a COLMAP model of six cube faces.
+TEST(RunReconstructGL, OneCameraClipToTumTrajectoryThatPlayReads) {
+  const fs::path demo = fs::path(ODVR_SOURCE_DIR) / "media/demo";
+  const ScratchDir t{"odvr_run_reconstruct_video"};
+  const fs::path out = t.dir / "rec";
+  const CliRun r =
+      RunOdvr("reconstruct --video " + (demo / "street.mp4").string() + " --camera-height 2.027356 --out " +
+              out.string() + " --ground-truth " + (demo / "trajectory_gt.json").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  std::printf("demo clip, one camera: ATE %.3f %% of the path, scale error %.2f %%, %d points\n",
+              j["evaluation"]["ate_percent_of_path"].get<double>(),
+              j["evaluation"]["scale_error_percent"].get<double>(), j["points"].get<int>());
+  EXPECT_EQ(j["frames"].get<int>(), 24) << "every frame posed";
+  EXPECT_EQ(j["input"]["layout"], "mono");
+  EXPECT_TRUE(j["input"]["metric"].get<bool>());
+  EXPECT_LT(j["evaluation"]["ate_percent_of_path"].get<double>(), 0.5);
+  EXPECT_LT(j["evaluation"]["scale_error_percent"].get<double>(), 5);
+  EXPECT_EQ(DataLines(out / "trajectory.tum"), 24);
+  EXPECT_EQ(DataLines(out / "cameras.txt"), 6) << "the equirect camera as six cube faces";
+  EXPECT_EQ(DataLines(out / "images.txt"), 24 * 6 * 2);
+
+  const CliRun play =
+      RunOdvr("play --headless --size 64x36 --frames 2 --trajectory " + (out / "trajectory.tum").string() + " --car " +
+              (demo / "car.glb").string() + " --levels 3 --voxels 64 --out " + (t.dir / "frames").string() +
+              " --json " + (demo / "street.mp4").string());
+  ASSERT_EQ(play.exit_code, 0) << play.err;
+  const auto pj = nlohmann::json::parse(play.out);
+  EXPECT_GT(pj["frames"][0]["car_pixels"].get<int>(), 10) << "the car stands in the reconstructed scene";
+}
+
+TEST(RunReconstruct, OneCameraNeedsAClipAndRefusesRigOptions) {
+  const CliRun none = RunOdvr("reconstruct --camera-height 1.5");
+  EXPECT_EQ(none.exit_code, 2);
+  EXPECT_NE(none.err.find("--video"), std::string::npos) << none.err;
+  const CliRun mixed = RunOdvr("reconstruct --rig x.json --camera-height 1.5");
+  EXPECT_EQ(mixed.exit_code, 2);
+  EXPECT_NE(mixed.err.find("--rig-height"), std::string::npos) << mixed.err;
+  const CliRun multi = RunOdvr("reconstruct --frames " + (fs::path(ODVR_SOURCE_DIR) / "media/demo/rig").string());
+  EXPECT_EQ(multi.exit_code, 2);
+  EXPECT_NE(multi.err.find("holds 6 cameras: a multi-camera recording needs its --rig"), std::string::npos)
+      << multi.err;
+}
+
 }  // namespace

@@ -84,6 +84,41 @@ TEST(Evaluation, StreetTruthAgainstAStretchedNoisyCopy) {
   EXPECT_NEAR(e.ate_percent, 100 * e.ate_rmse_m / e.length_m, 1e-9);
 }
 
+// TUM, as odvr reconstruct writes it and other tools do: frames named by timestamp x fps, the
+// same poses as the JSON it was written beside, and each malformed line named.
+TEST(Evaluation, TumTrajectoriesReadBackAsTheirFramesAndNameTheirBadLines) {
+  const fs::path dir = fs::temp_directory_path() / ("odvr_evaluation_tum_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path demo = fs::path(ODVR_SOURCE_DIR) / "media/demo";
+  const auto json = LoadTrajectoryJson(demo / "trajectory_gt.json");
+  const auto tum = LoadTrajectory(demo / "trajectory_gt.tum", 25);
+  ASSERT_EQ(tum.size(), json.size());
+  for (size_t i = 0; i < tum.size(); ++i) {
+    EXPECT_EQ(tum[i].index, json[i].index);
+    EXPECT_LT((tum[i].world_from_rig - json[i].world_from_rig).norm(), 1e-5) << "frame " << i;
+  }
+  auto expect_error = [&](const std::string& text, const std::string& needle) {
+    const fs::path p = dir / "t.tum";
+    std::ofstream(p) << text;
+    try {
+      LoadTrajectory(p, 25);
+      ADD_FAILURE() << "no error for " << text;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error("# only a comment\n", "holds no pose");
+  expect_error("0 1 2 3 0 0 0\n", "line 1: expected 8 numbers");
+  expect_error("# header\n0 1 2 3 0 0 0 1 9\n", "line 2: more than 8 fields");
+  expect_error("0 1 2 3 0 0 0 2\n", "line 1: the quaternion is not of unit length");
+  expect_error("0 nan 2 3 0 0 0 1\n", "line 1");
+  expect_error("1e300 0 0 0 0 0 0 1\n", "out of range");
+  expect_error("0 0 0 0 0 0 0 1\n0.01 0 0 0 0 0 0 1\n", "line 2: a second pose for frame 0");
+  EXPECT_THROW(LoadTrajectoryTum(demo / "trajectory_gt.tum", 0), Error);
+  fs::remove_all(dir);
+}
+
 TEST(Evaluation, NamesTheFileAndTheProblem) {
   const fs::path dir = fs::temp_directory_path() / ("odvr_evaluation_" + std::to_string(::getpid()));
   fs::create_directories(dir);

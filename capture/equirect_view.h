@@ -1,0 +1,42 @@
+#pragma once
+// One equirectangular camera's frames as structure from motion wants them: one eye of a stereo
+// video, every step-th frame, scaled down to a tracking width. Consumer 360° cameras record mono
+// equirect (2:1), or stereo as two 2:1 eyes stacked top-bottom (1:1) or side by side (4:1).
+#include <memory>
+#include <string>
+
+#include "capture/rig.h"
+#include "capture/source.h"
+
+namespace odvr::capture {
+
+enum class StereoLayout { kMono, kTopBottom, kSideBySide };
+
+// "mono", "top-bottom", "side-by-side" (also "tb", "sbs").
+StereoLayout ParseStereoLayout(const std::string& name);
+std::string ToString(StereoLayout layout);
+// The layout a frame's shape implies: 1:1 top-bottom, 4:1 side by side, otherwise mono.
+StereoLayout GuessStereoLayout(int width, int height);
+
+struct EquirectViewOptions {
+  StereoLayout layout = StereoLayout::kMono;
+  int eye = 0;         // 0: the top or left eye, 1: the other
+  int width = 0;       // scale the eye to width x width/2 (INTER_AREA); 0 keeps its size
+  long step = 1;       // deliver every step-th frame of the source
+  void Check() const;  // throws odvr::Error naming the bad field
+};
+
+// Wraps a one-camera source. Frame indices and timestamps stay the source's, so a trajectory made
+// from the view names the video's own frames. Throws odvr::Error when `source` has more than one
+// camera.
+std::unique_ptr<Source> OpenEquirectView(std::unique_ptr<Source> source, const EquirectViewOptions& options);
+
+// The eye's size once cropped from a width x height frame (before any scaling).
+void EyeSize(StereoLayout layout, int width, int height, int* eye_width, int* eye_height);
+
+// A one-camera rig: an upright equirectangular camera at the rig centre (its image's centre
+// column looks along the rig's x, forward; row 0 is the zenith), `height_m` above the road
+// (0: unknown).
+Rig EquirectCameraRig(int width, int height, double height_m);
+
+}  // namespace odvr::capture
