@@ -1,7 +1,9 @@
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "app/clip_reconstruction.h"
 #include "app/commands.h"
 #include "app/live_player.h"
 #include "app/player.h"
@@ -10,8 +12,13 @@
 namespace odvr::app {
 namespace {
 
+// A handheld or helmet 360° camera's height, when the user gives none: the car's size then
+// depends on it, so play says it assumed it.
+constexpr double kAssumedCameraHeightM = 1.6;
+
 struct PlayCommand {
   PlayerOptions options;
+  double camera_height_m = 0;
   std::string size = "1280x720";
   CLI::Option* size_option = nullptr;
   bool json = false;
@@ -46,14 +53,30 @@ int RunPlay(PlayCommand& c) {
     const bool headless = c.options.headless || !DisplayAvailable();
     if (!c.no_car && headless && c.options.drive.empty()) c.options.drive = "W:1s,-:1s";
   }
-  if (!c.options.car.empty() && c.options.trajectory.empty())
-    throw UsageError("--car", "needs --trajectory (the camera poses that place the car on the road)");
+  std::string reconstruction;  // the cached reconstruction the trajectory came from, if any
+  if (!c.options.car.empty() && c.options.trajectory.empty()) {
+    // A clip and a car, no poses: reconstruct the clip as one 360° camera first (once: cached).
+    ClipInput in;
+    in.clip = c.options.video;
+    in.camera_height_m = c.camera_height_m > 0 ? c.camera_height_m : kAssumedCameraHeightM;
+    if (!(c.camera_height_m > 0))
+      std::fprintf(stderr, "odvr play: no --camera-height: assuming the camera %.1f m above the road\n",
+                   kAssumedCameraHeightM);
+    bool reused = false;
+    const std::filesystem::path dir = CachedClipReconstruction(in, &reused);
+    std::fprintf(stderr, "odvr play: %s %s\n",
+                 reused ? "the camera's poses from" : "reconstructed the camera's poses into", dir.string().c_str());
+    c.options.trajectory = (dir / "trajectory.json").string();
+    reconstruction = dir.string();
+  }
   if (!c.options.trajectory.empty() && c.options.car.empty())
     throw UsageError("--trajectory", "needs --car (a glTF 2.0 model)");
   const PlayerReport r = RunPlayer(c.options);
   if (c.json) {
     nlohmann::json j{{"mode", r.mode},
                      {"augmented", !c.options.trajectory.empty()},
+                     {"trajectory", c.options.trajectory},
+                     {"reconstruction", reconstruction},
                      {"size", {c.options.width, c.options.height}},
                      {"frames_shown", r.frames_shown},
                      {"output_dir", r.output_dir},
@@ -119,7 +142,11 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_option("--screenshot", o.screenshot, "Window: save the last frame shown to this PNG");
   sub->add_option("--trajectory", o.trajectory,
                   "Augmented mode: camera poses placing the car (odvr reconstruct's trajectory.json or .tum)");
-  sub->add_option("--car", o.car, "Augmented mode: the car, a glTF 2.0 model (.glb/.gltf)");
+  sub->add_option("--car", o.car,
+                  "Augmented mode: the car, a glTF 2.0 model (.glb/.gltf); without --trajectory the video is "
+                  "reconstructed first as one 360° camera (once: cached in ~/.cache/odvr)");
+  sub->add_option("--camera-height", c->camera_height_m,
+                  "Without --trajectory: the camera's height above the road in metres (default: assumed 1.6)");
   sub->add_option("--car-start", o.car_start_m, "Car's start: arc length along the camera path in metres");
   sub->add_option("--view-distance", o.view_distance_m, "The viewer's frame trails the car by this many metres")
       ->capture_default_str();

@@ -1,5 +1,8 @@
 #include "capture/equirect_view.h"
 
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
 #include <opencv2/imgproc.hpp>
 
 #include "engine/core/error.h"
@@ -100,6 +103,88 @@ void EquirectViewOptions::Check() const {
 
 std::unique_ptr<Source> OpenEquirectView(std::unique_ptr<Source> source, const EquirectViewOptions& options) {
   return std::make_unique<EquirectViewSource>(std::move(source), options);
+}
+
+EquirectClip OpenEquirectClip(std::unique_ptr<Source> raw, const std::string& name, std::optional<StereoLayout> stereo,
+                              int eye, int max_width, long step, long first) {
+  if (first > 0) raw->Seek(first);
+  const auto set = raw->Next();
+  if (!set || set->frames.empty() || set->frames.front().image.empty()) throw Error(name, "no decodable first frame");
+  const cv::Mat& image = set->frames.front().image;
+  EquirectViewOptions view;
+  view.layout = stereo ? *stereo : GuessStereoLayout(image.cols, image.rows);
+  int w = 0, h = 0;
+  EyeSize(view.layout, image.cols, image.rows, &w, &h);
+  if (w != 2 * h)
+    throw Error(name, "a " + ToString(view.layout) + " frame of " + std::to_string(image.cols) + "x" +
+                          std::to_string(image.rows) + " gives a " + std::to_string(w) + "x" + std::to_string(h) +
+                          " eye, not an equirectangular 2:1 image");
+  view.eye = eye;
+  view.width = std::min(max_width - max_width % 2, w - w % 2);
+  view.step = step;
+  raw->Seek(first);
+  EquirectClip clip;
+  clip.layout = view.layout;
+  clip.width = view.width;
+  clip.source = OpenEquirectView(std::move(raw), view);
+  return clip;
+}
+
+cv::Mat NadirCapMask(int width, int height, double cap_deg) {
+  cv::Mat mask = cv::Mat::zeros(height, width, CV_8U);
+  const int rows = std::min(height, static_cast<int>(std::ceil(cap_deg / 180.0 * height)));
+  if (rows > 0) mask.rowRange(height - rows, height).setTo(255);
+  return mask;
+}
+
+std::vector<RigCamera> CubeFaceCameras(const RigCamera& equirect, int size) {
+  struct Face {
+    const char* name;
+    Eigen::Vector3d z, y;  // optical axis and image down, in the equirect camera's frame
+  };
+  static const Face kFaces[6] = {{"front", {0, 0, 1}, {0, 1, 0}}, {"right", {1, 0, 0}, {0, 1, 0}},
+                                 {"back", {0, 0, -1}, {0, 1, 0}}, {"left", {-1, 0, 0}, {0, 1, 0}},
+                                 {"up", {0, -1, 0}, {0, 0, 1}},   {"down", {0, 1, 0}, {0, 0, -1}}};
+  std::vector<RigCamera> faces;
+  for (const Face& f : kFaces) {
+    Eigen::Matrix3d cam_from_face;
+    cam_from_face.col(0) = f.y.cross(f.z);
+    cam_from_face.col(1) = f.y;
+    cam_from_face.col(2) = f.z;
+    RigCamera face;
+    face.name = equirect.name + "_" + f.name;
+    // 90° across: the focal is half the size; pixel centres at integers, so the centre is (size - 1) / 2.
+    face.model =
+        CameraModel::Pinhole(size, size, size / 2.0, size / 2.0, (size - 1) / 2.0, (size - 1) / 2.0, {0, 0, 0, 0, 0});
+    face.rig_from_cam = equirect.rig_from_cam;
+    face.rig_from_cam.topLeftCorner<3, 3>() = equirect.rig_from_cam.topLeftCorner<3, 3>() * cam_from_face;
+    faces.push_back(face);
+  }
+  return faces;
+}
+
+cv::Mat CubeFaceImage(const cv::Mat& equirect_image, const RigCamera& equirect, const RigCamera& face) {
+  const int size = face.model.width();
+  const Eigen::Matrix3d cam_from_face =
+      equirect.rig_from_cam.topLeftCorner<3, 3>().transpose() * face.rig_from_cam.topLeftCorner<3, 3>();
+  cv::Mat map_x(size, size, CV_32F), map_y(size, size, CV_32F);
+  const double sx = static_cast<double>(equirect_image.cols) / equirect.model.width();
+  const double sy = static_cast<double>(equirect_image.rows) / equirect.model.height();
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x) {
+      Eigen::Vector3d b;
+      Eigen::Vector2d p(-1, -1);
+      if (face.model.Unproject(Eigen::Vector2d(x, y), &b)) equirect.model.Project(cam_from_face * b, &p);
+      map_x.at<float>(y, x) = static_cast<float>((p.x() + 0.5) * sx - 0.5);
+      map_y.at<float>(y, x) = static_cast<float>((p.y() + 0.5) * sy - 0.5);
+    }
+  // The seam: columns wrap, so sample from the image with one column of the other side each way.
+  cv::Mat wrapped;
+  cv::copyMakeBorder(equirect_image, wrapped, 0, 0, 1, 1, cv::BORDER_WRAP);
+  map_x += 1.0f;
+  cv::Mat out;
+  cv::remap(wrapped, out, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  return out;
 }
 
 Rig EquirectCameraRig(int width, int height, double height_m) {

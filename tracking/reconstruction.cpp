@@ -1094,6 +1094,12 @@ void ReconstructionOptions::Check() const {
     throw Error("trifocal_min_inlier_ratio", "must be in [0, 1]");
 }
 
+ReconstructionOptions OneCameraReconstructionOptions() {
+  ReconstructionOptions o;
+  o.klt.quality_level = 0.001;
+  return o;
+}
+
 Reconstruction Reconstruct(const capture::Rig& rig, capture::Source& source, const ReconstructionOptions& options,
                            const ReconstructionCallbacks& callbacks) {
   options.Check();

@@ -65,6 +65,13 @@ struct ReconstructionOptions {
   void Check() const;
 };
 
+// The defaults for one equirectangular camera (a consumer 360° video). Its frame holds the whole
+// sky and every facade, whose corners are the strongest, and the road's weak texture falls under
+// 1 % of them; but the road is what gives the metric scale. A floor of 0.1 % keeps it: on
+// street_a as H.264 (crf 23, 40 frames) the road plane rests on 98 points instead of 14, the
+// scale error over 10-40 frames stays within 3 % where it had swung between 0.7 and 108 %.
+ReconstructionOptions OneCameraReconstructionOptions();
+
 struct PointObservation {
   int frame = 0;  // index into Reconstruction::frames
   int camera = 0;

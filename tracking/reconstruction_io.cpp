@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "capture/equirect_view.h"
 #include "capture/rig.h"
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
@@ -187,31 +188,18 @@ std::string RoadPlaneJson(const Reconstruction& r) {
 }
 
 // COLMAP has no equirectangular camera; its users split 360° frames into six 90° cube faces.
-// The same here: each equirect camera becomes six pinhole cameras at its centre (front, right,
-// back, left, up, down; each face's OpenCV axes in the camera's), and each observation goes to
-// the face its bearing points into, at that face's pixel. Other cameras pass unchanged.
+// The same here: each equirect camera becomes its six faces (capture::CubeFaceCameras), and each
+// observation goes to the face its bearing points into, at that face's pixel. Other cameras pass
+// unchanged.
 Reconstruction AsCubeFaces(const Reconstruction& r) {
   bool any = false;
   for (const auto& cam : r.rig.cameras) any |= cam.model.type() == capture::CameraModelType::kEquirectangular;
   if (!any) return r;
-  struct Face {
-    const char* name;
-    Eigen::Vector3d z, y;  // optical axis and image down, in the equirect camera's frame
-  };
-  static const Face kFaces[6] = {{"front", {0, 0, 1}, {0, 1, 0}}, {"right", {1, 0, 0}, {0, 1, 0}},
-                                 {"back", {0, 0, -1}, {0, 1, 0}}, {"left", {-1, 0, 0}, {0, 1, 0}},
-                                 {"up", {0, -1, 0}, {0, 0, 1}},   {"down", {0, 1, 0}, {0, 0, -1}}};
   Reconstruction out;
   out.rig.path = r.rig.path;
   out.rig.height_m = r.rig.height_m;
   out.frames = r.frames;
   std::vector<int> first_face(r.rig.cameras.size());  // the camera's first index in out.rig
-  std::vector<Eigen::Matrix3d> cam_from_face(6);
-  for (int k = 0; k < 6; ++k) {
-    cam_from_face[k].col(2) = kFaces[k].z;
-    cam_from_face[k].col(1) = kFaces[k].y;
-    cam_from_face[k].col(0) = kFaces[k].y.cross(kFaces[k].z);
-  }
   for (size_t c = 0; c < r.rig.cameras.size(); ++c) {
     const auto& cam = r.rig.cameras[c];
     first_face[c] = out.rig.camera_count();
@@ -219,16 +207,8 @@ Reconstruction AsCubeFaces(const Reconstruction& r) {
       out.rig.cameras.push_back(cam);
       continue;
     }
-    const int size = std::max(2, cam.model.width() / 4);
-    for (int k = 0; k < 6; ++k) {
-      capture::RigCamera face;
-      face.name = cam.name + "_" + kFaces[k].name;
-      face.model = capture::CameraModel::Pinhole(size, size, size / 2.0, size / 2.0, (size - 1) / 2.0, (size - 1) / 2.0,
-                                                 {0, 0, 0, 0, 0});
-      face.rig_from_cam = cam.rig_from_cam;
-      face.rig_from_cam.topLeftCorner<3, 3>() = cam.rig_from_cam.topLeftCorner<3, 3>() * cam_from_face[k];
-      out.rig.cameras.push_back(face);
-    }
+    for (auto& face : capture::CubeFaceCameras(cam, std::max(2, cam.model.width() / 4)))
+      out.rig.cameras.push_back(std::move(face));
   }
   for (const auto& pt : r.points) {
     ReconstructedPoint q = pt;
@@ -239,12 +219,19 @@ Reconstruction AsCubeFaces(const Reconstruction& r) {
         q.observations.back().camera = first_face[o.camera];
         continue;
       }
+      // The face the bearing points into: the one whose axis is nearest to it.
+      const Eigen::Matrix3d rig_from_cam = r.rig.cameras[o.camera].rig_from_cam.topLeftCorner<3, 3>();
       int best = 0;
-      for (int k = 1; k < 6; ++k)
-        if (o.bearing.dot(kFaces[k].z) > o.bearing.dot(kFaces[best].z)) best = k;
+      double best_dot = -2;
+      for (int k = 0; k < 6; ++k) {
+        const Eigen::Matrix3d rig_from_face =
+            out.rig.cameras[first_face[o.camera] + k].rig_from_cam.topLeftCorner<3, 3>();
+        const double d = (rig_from_face.transpose() * rig_from_cam * o.bearing).z();
+        if (d > best_dot) best_dot = d, best = k;
+      }
       PointObservation f = o;
       f.camera = first_face[o.camera] + best;
-      f.bearing = cam_from_face[best].transpose() * o.bearing;
+      f.bearing = out.rig.cameras[f.camera].rig_from_cam.topLeftCorner<3, 3>().transpose() * rig_from_cam * o.bearing;
       const auto& m = out.rig.cameras[f.camera].model;
       f.pixel = Eigen::Vector2d(m.fx() * f.bearing.x() / f.bearing.z() + m.cx(),
                                 m.fy() * f.bearing.y() / f.bearing.z() + m.cy());

@@ -162,4 +162,31 @@ TEST(BenchReconstruct, MissingColmapDatasetOrTableIsAClearError) {
   EXPECT_FALSE(fs::exists(t.dir / "tracking.tsv"));
 }
 
+// --equirect on the first 8 frames, odvr alone: the panoramas and the stitched rig as H.264,
+// each with and without the camera height, the rig mode beside them, and the real clips.
+TEST(BenchReconstruct, EquirectRowsForBothVideosAndTheRigWithTheirTargets) {
+  if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
+  const ScratchDir t{"odvr_bench_equirect"};
+  const CliRun r = RunOdvr("bench reconstruct --equirect --frames 8 --no-colmap --clip-frames 4 --dataset " +
+                           kStreet.string() + " --out " + t.dir.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::printf("%s", r.out.c_str());
+  const auto rows = ReadTsv(t.dir / "tracking_equirect.tsv");
+  std::map<std::string, std::map<std::string, std::string>> by_method;
+  for (const auto& row : rows) by_method[row.at("method")] = row;
+  for (const char* m : {"odvr, gt H.264", "odvr, gt H.264, no height", "odvr, stitched H.264",
+                        "odvr, stitched H.264, no height", "odvr rig"}) {
+    ASSERT_TRUE(by_method.count(m)) << m;
+    EXPECT_EQ(Number(by_method[m], "frames_posed"), 8) << m;
+    EXPECT_LT(Number(by_method[m], "ate_percent"), 1.0) << m;
+  }
+  EXPECT_TRUE(std::isnan(Number(by_method["odvr, gt H.264, no height"], "scale_error_percent")))
+      << "up to scale: no scale error";
+  EXPECT_FALSE(std::isnan(Number(by_method["odvr, gt H.264"], "scale_error_percent")));
+  const std::string md = ReadText(t.dir / "tracking_equirect.md");
+  EXPECT_NE(md.find("## Targets"), std::string::npos);
+  EXPECT_NE(md.find("## Real clips"), std::string::npos);
+  EXPECT_TRUE(fs::exists(t.dir / "tracking_equirect_paths.tsv"));
+}
+
 }  // namespace

@@ -20,10 +20,11 @@ struct CliRun {
   std::string err;  // stderr
 };
 
-inline CliRun RunOdvr(const std::string& args) {
+// `env`: assignments for the command's environment ("XDG_CACHE_HOME=/tmp/x"), shell-quoted.
+inline CliRun RunOdvr(const std::string& args, const std::string& env = "") {
   // Per process: ctest runs the app tests in parallel.
   const std::string err_file = ::testing::TempDir() + "odvr_err_" + std::to_string(::getpid()) + ".txt";
-  const std::string cmd = std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
+  const std::string cmd = (env.empty() ? "" : env + " ") + std::string(ODVR_BINARY) + " " + args + " 2>" + err_file;
   CliRun run{-1, "", ""};
   FILE* pipe = ::popen(cmd.c_str(), "r");
   std::array<char, 4096> buf{};

@@ -26,11 +26,27 @@ fs::path TempDir(const std::string& name) {
   return d;
 }
 
-TEST(RunPlay, CarWithoutTrajectoryIsAUsageError) {
-  const auto r =
-      RunOdvr("play --headless " + (kDemo / "street.mp4").string() + " --car " + (kDemo / "car.glb").string());
-  EXPECT_EQ(r.exit_code, 2) << r.err;
-  EXPECT_NE(r.err.find("--trajectory"), std::string::npos) << r.err;
+// A clip and a car, no poses: play reconstructs the clip as one 360° camera first, into the
+// user's cache, and the second time takes the poses from there.
+TEST(RunPlayGL, CarWithoutTrajectoryReconstructsTheClipOnceAndStandsTheCarInIt) {
+  const fs::path dir = TempDir("odvr_play_reconstructs");
+  const std::string env = "XDG_CACHE_HOME=" + (dir / "cache").string();
+  const std::string args = "play --headless --size 64x36 --frames 2 --json --camera-height 2.027356 --out " +
+                           (dir / "frames").string() + kSmall + (kDemo / "street.mp4").string() + " --car " +
+                           (kDemo / "car.glb").string();
+  const auto first = RunOdvr(args, env);
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  EXPECT_NE(first.err.find("reconstructed the camera's poses into " + (dir / "cache/odvr/reconstructions").string()),
+            std::string::npos)
+      << first.err;
+  const auto j = nlohmann::json::parse(first.out);
+  EXPECT_TRUE(j["augmented"].get<bool>());
+  EXPECT_TRUE(fs::exists(fs::path(j["reconstruction"].get<std::string>()) / "trajectory.tum"));
+  EXPECT_GT(j["frames"][0]["car_pixels"].get<int>(), 20) << "the car stands in the reconstructed street";
+  const auto second = RunOdvr(args, env);
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  EXPECT_NE(second.err.find("the camera's poses from"), std::string::npos) << second.err;
+  EXPECT_EQ(nlohmann::json::parse(second.out)["reconstruction"], j["reconstruction"]);
 }
 
 TEST(RunPlayGL, SupersampleOutOfRangeIsAUsageError) {
