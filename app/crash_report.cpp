@@ -7,6 +7,8 @@
 #include <cstring>
 #include <initializer_list>
 
+#include "engine/core/atomic_file.h"
+
 namespace odvr::app {
 namespace {
 
@@ -53,6 +55,13 @@ void OnFatalSignal(int sig) {
   raise(sig);
 }
 
+// SIGINT/SIGTERM: the temporaries of unfinished atomic writes go, then the default action
+// (SA_RESETHAND restored it), so the process still ends by the signal.
+void OnInterrupt(int sig) {
+  RemoveTemporaryFiles();
+  ::raise(sig);
+}
+
 }  // namespace
 
 void InstallCrashReport() {
@@ -63,6 +72,11 @@ void InstallCrashReport() {
   sigemptyset(&action.sa_mask);
   action.sa_flags = SA_RESETHAND | SA_NODEFER;
   for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT}) sigaction(sig, &action, nullptr);
+  struct sigaction interrupt {};
+  interrupt.sa_handler = OnInterrupt;
+  sigemptyset(&interrupt.sa_mask);
+  interrupt.sa_flags = SA_RESETHAND;
+  for (int sig : {SIGINT, SIGTERM}) sigaction(sig, &interrupt, nullptr);
 }
 
 }  // namespace odvr::app

@@ -13,6 +13,7 @@
 
 #include "app/augmented_scene.h"
 #include "app/commands.h"
+#include "capture/source.h"
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
 #include "engine/gl/context.h"
@@ -89,8 +90,7 @@ int RunExport(ExportCommand& c) {
     }
     std::fprintf(stderr, "\n");
     writer.release();
-    if (!std::filesystem::exists(tmp) || std::filesystem::file_size(tmp) == 0)
-      throw Error(c.out, "the video writer produced nothing");
+    capture::CheckWrittenVideo(tmp, c.out, frames);
   });
   const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
   std::cout << c.out << ": " << frames << " frames " << width << "x" << height << " at " << fps << " fps in " << elapsed

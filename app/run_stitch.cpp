@@ -150,6 +150,8 @@ int RunStitch(const StitchCommand& c) {
         writer.write(ToBgr8(f.image));
       });
       if (!writer.isOpened()) throw Error(c.in.empty() ? c.rig : c.in, "delivered no frames to stitch");
+      writer.release();
+      capture::CheckWrittenVideo(tmp, c.out, static_cast<long>(ms.size()));
     });
   } else {
     fs::create_directories(c.out);

@@ -72,4 +72,9 @@ std::vector<std::filesystem::path> ImageFiles(const std::string& dir);
 // replayed live: OpenReplay). Throws odvr::Error naming `spec` when it is none of these.
 std::unique_ptr<Source> OpenSource(const std::string& spec, const SourceOptions& options = {});
 
+// A video just written, read back: FFmpeg's muxer reports no error when the disk fills, and
+// leaves a file without its index. Throws odvr::Error naming `name` (the user's output, not the
+// temporary) when `file` cannot be opened or holds fewer than `expected_frames` frames.
+void CheckWrittenVideo(const std::filesystem::path& file, const std::string& name, long expected_frames);
+
 }  // namespace odvr::capture

@@ -298,19 +298,18 @@ std::string ReconstructionSummaryJson(const Reconstruction& r) {
 }
 
 void WriteReconstruction(const Reconstruction& r, const fs::path& dir, const std::string& extra_summary_json) {
-  fs::create_directories(dir);
-  WriteTextAtomically(dir / "trajectory.json", TrajectoryJson(r));
-  WriteTextAtomically(dir / "trajectory.tum", TrajectoryTum(r));
   const Reconstruction colmap = AsCubeFaces(r);
-  WriteTextAtomically(dir / "cameras.txt", CamerasTxt(colmap));
   std::string images, points;
   ColmapModel(colmap, &images, &points);
-  WriteTextAtomically(dir / "images.txt", images);
-  WriteTextAtomically(dir / "points3D.txt", points);
-  WriteTextAtomically(dir / "road_plane.json", RoadPlaneJson(r));
   nlohmann::json summary = nlohmann::json::parse(ReconstructionSummaryJson(r));
   if (!extra_summary_json.empty()) summary.update(nlohmann::json::parse(extra_summary_json));
-  WriteTextAtomically(dir / "summary.json", summary.dump(1) + "\n");
+  WriteTextFilesAtomically(dir, {{"trajectory.json", TrajectoryJson(r)},
+                                 {"trajectory.tum", TrajectoryTum(r)},
+                                 {"cameras.txt", CamerasTxt(colmap)},
+                                 {"images.txt", images},
+                                 {"points3D.txt", points},
+                                 {"road_plane.json", RoadPlaneJson(r)},
+                                 {"summary.json", summary.dump(1) + "\n"}});
 }
 
 }  // namespace odvr::tracking

@@ -1,18 +1,42 @@
 #pragma once
 // Outputs are written atomically: to a temporary file beside the target, then renamed over it,
-// so a crash or a full disk never leaves a half-written result where a good one was.
+// so a crash, a full disk or an interrupt never leaves a half-written result where a good one was.
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace odvr {
 
-// Calls write(tmp_path) and renames tmp_path to `path` if it returns normally. The temporary
-// keeps the target's extension so format-sniffing writers (OpenImageIO, OpenCV) still work.
+// Calls write(tmp_path) and renames tmp_path to `path` if it returns normally and left a file
+// there. The temporary keeps the target's extension so format-sniffing writers (OpenImageIO,
+// OpenCV) still work. Throws odvr::Error naming `path` when it exists and is not a regular file
+// (a device, FIFO, directory or symbolic link is never replaced by a file: `--out /dev/null` run
+// as root must not destroy /dev/null), when the writer leaves nothing, or when the rename fails;
+// the temporary is removed then, and by RemoveTemporaryFiles on SIGINT/SIGTERM.
 void WriteFileAtomically(const std::filesystem::path& path,
                          const std::function<void(const std::filesystem::path& tmp_path)>& write);
 
 // Convenience for text outputs (JSON, TUM, COLMAP text).
 void WriteTextAtomically(const std::filesystem::path& path, const std::string& text);
+
+// A set of text files in `dir` (created), as a set: each is written to a temporary first, then
+// all are renamed into place with SIGINT and SIGTERM held off, so an interrupted or failed run
+// leaves either the whole old set or the whole new one, never files of both.
+void WriteTextFilesAtomically(const std::filesystem::path& dir,
+                              const std::vector<std::pair<std::string, std::string>>& name_and_text);
+
+// Throws odvr::Error naming `path` when it exists and is not a regular file (see above); for
+// outputs written in place or as folders.
+void CheckReplaceableOutput(const std::filesystem::path& path);
+
+// Registers `path` as a temporary to remove if the process is interrupted, until released. Up to
+// 32 at once; more are simply not cleaned on a signal.
+void RegisterTemporaryFile(const std::filesystem::path& path);
+void ReleaseTemporaryFile(const std::filesystem::path& path);
+// Removes every registered temporary, files first, then folders (emptied by then): only
+// unlink and rmdir, async-signal-safe, for a SIGINT/SIGTERM handler.
+void RemoveTemporaryFiles();
 
 }  // namespace odvr

@@ -170,7 +170,8 @@ void SaveImage(const std::filesystem::path& path, const sphere::EquirectImage& i
       if (!out->open(tmp.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()))
         throw Error(path.string(), "cannot write: " + out->geterror());
     }
-    out->close();
+    // The encoder flushes its last blocks on close: a full disk shows there.
+    if (!out->close()) throw Error(path.string(), "cannot write: " + out->geterror());
   });
 }
 

@@ -2,8 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <fstream>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "engine/core/error.h"
 
@@ -45,6 +52,95 @@ TEST(AtomicFile, UnwritableDirectoryIsAClearError) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("/proc/odvr_cannot_be_here"), std::string::npos) << e.what();
   }
+}
+
+// Issue: `--out` onto a device, FIFO or link replaced the node with a regular file (as root,
+// `--out /dev/null` would destroy /dev/null). Refused, naming the path, the node untouched.
+TEST(AtomicFile, ANodeThatIsNotARegularFileIsNeverReplaced) {
+  const fs::path dir = fs::temp_directory_path() / ("odvr_atomic_nodes_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path fifo = dir / "fifo.png", link = dir / "link.json", real = dir / "real.json", sub = dir / "sub";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  WriteTextAtomically(real, "kept");
+  fs::create_symlink(real, link);
+  fs::create_directories(sub);
+  for (const auto& [path, what] : std::vector<std::pair<fs::path, std::string>>{
+           {fifo, "a FIFO"}, {link, "a symbolic link"}, {sub, "a directory"}, {"/dev/null", "a device"}}) {
+    try {
+      WriteTextAtomically(path, "x");
+      ADD_FAILURE() << "no error for " << path;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(path.string() + ": is " + what + ", not a regular file"), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_EQ(ReadAll(real), "kept");
+  EXPECT_TRUE(fs::is_character_file("/dev/null"));
+  fs::remove_all(dir);
+}
+
+TEST(AtomicFile, AWriterThatLeavesNoFileIsAnErrorAndKeepsTheOldOne) {
+  const fs::path dir = fs::temp_directory_path() / ("odvr_atomic_nofile_" + std::to_string(::getpid()));
+  const fs::path target = dir / "clip.mp4";
+  WriteTextAtomically(target, "old");
+  try {
+    WriteFileAtomically(target, [](const fs::path&) {});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("the writer produced no file"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(ReadAll(target), "old");
+  fs::remove_all(dir);
+}
+
+// A set of files replaces the old set whole or not at all: one output that cannot be written (a
+// directory stands where it goes) leaves every old file as it was and no temporary behind.
+TEST(AtomicFile, ASetIsWrittenWholeOrNotAtAll) {
+  const fs::path dir = fs::temp_directory_path() / ("odvr_atomic_set_" + std::to_string(::getpid()));
+  WriteTextFilesAtomically(dir, {{"a.json", "a1"}, {"b.txt", "b1"}});
+  EXPECT_EQ(ReadAll(dir / "a.json"), "a1");
+  WriteTextFilesAtomically(dir, {{"a.json", "a2"}, {"b.txt", "b2"}});
+  EXPECT_EQ(ReadAll(dir / "b.txt"), "b2");
+  fs::create_directories(dir / "c.txt");
+  EXPECT_THROW(WriteTextFilesAtomically(dir, {{"a.json", "a3"}, {"b.txt", "b3"}, {"c.txt", "c3"}}), Error);
+  EXPECT_EQ(ReadAll(dir / "a.json"), "a2");
+  EXPECT_EQ(ReadAll(dir / "b.txt"), "b2");
+  int entries = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++entries;
+  EXPECT_EQ(entries, 3) << "a.json, b.txt and the c.txt folder: no temporary left";
+  fs::remove_all(dir);
+}
+
+// SIGTERM in the middle of a write: the handler removes the registered temporaries before the
+// process ends by the signal. A child process stands in for odvr (which installs the handler in
+// app/crash_report.cpp).
+TEST(AtomicFile, RegisteredTemporariesAreRemovedByTheSignalHandler) {
+  const fs::path dir = fs::temp_directory_path() / ("odvr_atomic_signal_" + std::to_string(::getpid()));
+  fs::create_directories(dir / "set.tmp");
+  const fs::path file = dir / ".out.tmp1.png", inner = dir / "set.tmp" / "summary.json";
+  std::ofstream(file) << "half";
+  std::ofstream(inner) << "half";
+  const pid_t child = ::fork();
+  if (child == 0) {
+    RegisterTemporaryFile(file);
+    RegisterTemporaryFile(dir / "set.tmp");
+    RegisterTemporaryFile(inner);
+    ::signal(SIGTERM, [](int sig) {
+      RemoveTemporaryFiles();
+      ::signal(sig, SIG_DFL);
+      ::raise(sig);
+    });
+    ::raise(SIGTERM);
+    ::_exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM);
+  EXPECT_FALSE(fs::exists(file));
+  EXPECT_FALSE(fs::exists(dir / "set.tmp")) << "the folder, emptied";
+  fs::remove_all(dir);
 }
 
 }  // namespace
