@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/videoio.hpp>
 
+#include "capture/libav_video.h"
 #include "capture/source.h"
 #include "engine/core/error.h"
 
@@ -139,20 +139,18 @@ class ImageSequenceSource final : public Source {
   SourceStats stats_;
 };
 
+// One libav reader per file. Each Next() takes the next decodable frame of every camera; a frame
+// index is the frame's own position in its stream, so frames the decoder skipped leave gaps.
 class VideoFileSource final : public Source {
  public:
   VideoFileSource(const std::vector<std::string>& paths, const SourceOptions& options) : options_(options) {
     if (paths.empty()) throw Error("video files", "none given");
-    for (std::size_t c = 0; c < paths.size(); ++c) {
-      if (!fs::is_regular_file(paths[c])) throw Error(paths[c], "no such video file");
-      auto cap = std::make_unique<cv::VideoCapture>(paths[c], cv::CAP_FFMPEG);
-      if (!cap->isOpened()) throw Error(paths[c], "cannot open as video (FFmpeg could not read it)");
-      Camera cam;
-      cam.path = paths[c];
-      cam.fps = cap->get(cv::CAP_PROP_FPS);
+    for (const auto& path : paths) {
+      Camera cam{path, std::make_unique<LibavVideoReader>(path)};  // throws naming the file
+      cam.fps = cam.reader->fps();
       if (!(cam.fps > 0 && cam.fps < 1000)) cam.fps = options.fps;
-      cam.expected_frames = static_cast<long>(cap->get(cv::CAP_PROP_FRAME_COUNT));
-      cam.capture = std::move(cap);
+      cam.expected_frames = cam.reader->frame_count();
+      cam.exact_count = cam.reader->probe().frame_count_exact;
       cameras_.push_back(std::move(cam));
     }
   }
@@ -166,62 +164,65 @@ class VideoFileSource final : public Source {
   std::optional<FrameSet> Next(std::chrono::milliseconds) override {
     FrameSet set;
     set.frames.resize(cameras_.size());
-    bool any = false;
+    int present = 0;
     double t_sum = 0;
     for (std::size_t c = 0; c < cameras_.size(); ++c) {
       Camera& cam = cameras_[c];
       Frame& frame = set.frames[c];
       frame.camera = static_cast<int>(c);
-      frame.index = cam.read;
+      frame.index = cam.next;
       if (cam.ended) {
         ++stats_.missing_frames;
         continue;
       }
-      cv::Mat image;
-      // A corrupt packet makes read() fail once; FFmpeg resynchronizes at the next keyframe, so
-      // try a few more frames before calling the stream over.
-      int failures = 0;
-      while (!cam.capture->read(image) || image.empty()) {
-        ++failures;
-        if (cam.expected_frames > 0 && cam.read + failures < cam.expected_frames && failures < 8) {
-          ++stats_.corrupt_frames;
-          events_.push_back({SourceEvent::Kind::kCorruptFrame, static_cast<int>(c), cam.read + failures - 1,
-                             cam.path + ": undecodable frame skipped"});
-          continue;
-        }
+      std::optional<VideoFrame> decoded;
+      try {
+        decoded = cam.reader->Next();
+      } catch (const Error& e) {  // a frame libswscale cannot convert: the camera is gone
+        Lose(static_cast<int>(c), e.what());
+      }
+      ReportSkipped(static_cast<int>(c));
+      if (cam.ended) {
+        ++stats_.missing_frames;
+        continue;
+      }
+      if (!decoded) {
         cam.ended = true;
-        break;
-      }
-      if (cam.ended) {
         ++stats_.missing_frames;
-        if (cam.read < cam.expected_frames - 1)
-          events_.push_back({SourceEvent::Kind::kCameraLost, static_cast<int>(c), cam.read,
-                             cam.path + ": stream ends after " + std::to_string(cam.read) + " of " +
-                                 std::to_string(cam.expected_frames) + " frames (truncated?)"});
+        ReportEnd(static_cast<int>(c));
         continue;
       }
-      cam.read += failures + 1;
-      const double pos_ms = cam.capture->get(cv::CAP_PROP_POS_MSEC);
-      frame.timestamp_s = pos_ms > 0 ? pos_ms / 1000.0 : static_cast<double>(cam.read - 1) / cam.fps;
-      frame.index = cam.read - 1;
-      frame.image = std::move(image);
+      if (decoded->concealed) {
+        ++stats_.corrupt_frames;
+        events_.push_back(
+            {SourceEvent::Kind::kCorruptFrame, static_cast<int>(c), decoded->index,
+             cam.path + ": frame " + std::to_string(decoded->index) + " decoded with errors (concealed)"});
+      }
+      cam.next = decoded->index + 1;
+      frame.index = decoded->index;
+      frame.timestamp_s = decoded->timestamp_s;
+      frame.image = std::move(decoded->image);
       t_sum += frame.timestamp_s;
-      any = true;
+      ++present;
     }
-    if (!any) return std::nullopt;
-    int present = 0;
-    for (const auto& f : set.frames) present += !f.image.empty();
+    if (present == 0) return std::nullopt;
     set.timestamp_s = t_sum / present;
     set.index = stats_.sets_delivered++;
     return set;
   }
 
   bool Seek(long frame) override {
-    for (auto& cam : cameras_) {
+    for (std::size_t c = 0; c < cameras_.size(); ++c) {
+      Camera& cam = cameras_[c];
       const long target = std::clamp(frame, 0L, std::max(0L, cam.expected_frames - 1));
-      cam.capture->set(cv::CAP_PROP_POS_FRAMES, static_cast<double>(target));
-      cam.read = target;
+      cam.next = target;
       cam.ended = false;
+      try {
+        cam.reader->Seek(target);
+      } catch (const Error& e) {  // the file went away, or changed, since it was opened
+        Lose(static_cast<int>(c), e.what());
+      }
+      cam.skipped_reported = cam.reader->skipped_frames();  // frames before the target do not count
     }
     return true;
   }
@@ -238,12 +239,42 @@ class VideoFileSource final : public Source {
  private:
   struct Camera {
     std::string path;
-    std::unique_ptr<cv::VideoCapture> capture;
+    std::unique_ptr<LibavVideoReader> reader;
     double fps = 25;
     long expected_frames = 0;
-    long read = 0;
+    bool exact_count = false;  // expected_frames is the container's count, not an estimate
+    long next = 0;             // the index the next frame should have
+    long skipped_reported = 0;
     bool ended = false;
   };
+
+  void ReportSkipped(int c) {
+    Camera& cam = cameras_[c];
+    for (; cam.skipped_reported < cam.reader->skipped_frames(); ++cam.skipped_reported) {
+      ++stats_.corrupt_frames;
+      events_.push_back({SourceEvent::Kind::kCorruptFrame, c, cam.next, cam.path + ": undecodable frame skipped"});
+    }
+  }
+
+  // An error the reader cannot go on from ends the camera's stream, as its end would.
+  void Lose(int c, const std::string& what) {
+    Camera& cam = cameras_[c];
+    cam.ended = true;
+    events_.push_back({SourceEvent::Kind::kCameraLost, c, cam.next, what});
+  }
+
+  // A stream that ends short of its frame count was cut off. An estimated count (duration × fps)
+  // can be one over, so that much shortfall is no truncation.
+  void ReportEnd(int c) {
+    const Camera& cam = cameras_[c];
+    const long tolerance = cam.exact_count ? 0 : 1;
+    if (cam.expected_frames <= 0 || cam.next >= cam.expected_frames - tolerance) return;
+    std::string message = cam.path + ": stream ends after " + std::to_string(cam.next) + " of " +
+                          std::to_string(cam.expected_frames) + " frames (truncated?)";
+    if (!cam.reader->read_error().empty()) message += ": " + cam.reader->read_error();
+    events_.push_back({SourceEvent::Kind::kCameraLost, c, cam.next, message});
+  }
+
   SourceOptions options_;
   std::vector<Camera> cameras_;
   std::vector<SourceEvent> events_;

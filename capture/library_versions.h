@@ -2,6 +2,6 @@
 #include "engine/core/library_versions.h"
 
 namespace odvr {
-// libcamera and libv4l2, which only capture links.
+// libcamera, libv4l2 and libav (video files), which only capture links.
 LibraryVersions CaptureLibraryVersions();
 }  // namespace odvr

@@ -31,6 +31,8 @@ odvr_require_package(OpenImageIO libopenimageio-dev)
 odvr_require_pkgconfig(HEALPIX healpix_cxx libhealpix-cxx-dev)
 odvr_require_pkgconfig(LIBCAMERA libcamera libcamera-dev)
 odvr_require_pkgconfig(LIBV4L2 libv4l2 libv4l-dev)
+odvr_require_pkgconfig(LIBAV "libavformat;libavcodec;libavutil;libswscale"
+                       "libavformat-dev libavcodec-dev libavutil-dev libswscale-dev")
 odvr_require_pkgconfig(IMGUI imgui libimgui-dev)
 odvr_require_package(CLI11 libcli11-dev)
 odvr_require_package(spdlog libspdlog-dev)
