@@ -3,12 +3,16 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/libav_video.h"
 #include "engine/core/error.h"
 
 namespace odvr::capture {
 namespace {
+
+namespace fs = std::filesystem;
 
 class EquirectViewSource final : public Source {
  public:
@@ -111,6 +115,14 @@ EquirectClip OpenEquirectClip(std::unique_ptr<Source> raw, const std::string& na
   const auto set = raw->Next();
   if (!set || set->frames.empty() || set->frames.front().image.empty()) throw Error(name, "no decodable first frame");
   const cv::Mat& image = set->frames.front().image;
+  // What the file says (Spherical Video V2's st3d/sv3d), unless the caller says otherwise.
+  std::error_code ec;
+  if (fs::is_regular_file(name, ec)) {
+    const VideoProbe probe = ProbeVideo(name);
+    if (!probe.projection.empty() && probe.projection != "equirectangular")
+      throw Error(name, "is a " + probe.projection + " video by its metadata, not an equirectangular one");
+    if (!stereo) stereo = probe.stereo;
+  }
   EquirectViewOptions view;
   view.layout = stereo ? *stereo : GuessStereoLayout(image.cols, image.rows);
   int w = 0, h = 0;

@@ -40,8 +40,10 @@ struct EquirectClip {
   StereoLayout layout = StereoLayout::kMono;
   int width = 0;  // of the frames delivered (height width / 2)
 };
-// `raw` (one camera) from frame `first`: the layout `stereo` names, or the first frame's shape
-// implies when it names none; the eye checked to be a 2:1 image; scaled to at most `max_width`.
+// `raw` (one camera) from frame `first`: the layout `stereo` names, else the one the video file
+// `name` declares in its metadata, else the one the first frame's shape implies; the eye checked
+// to be a 2:1 image (a file whose metadata names another projection is refused); scaled to at
+// most `max_width`.
 // Throws odvr::Error naming `name` for a clip with no decodable first frame or an eye not 2:1.
 EquirectClip OpenEquirectClip(std::unique_ptr<Source> raw, const std::string& name, std::optional<StereoLayout> stereo,
                               int eye, int max_width, long step, long first);

@@ -563,9 +563,10 @@ class Reconstructor {
       // best rotation between the two frames' rig-frame rays (Wahba's problem, SVD) and the median
       // angle left over. A static rig or a pure rotation leaves only noise, and a solver's
       // translation would then be noise too.
+      // The best parallax seen: Wahba's below the threshold, else the pose's own (below).
       const double rotation_free = RotationFreeParallaxDeg(pairs);
-      *best_parallax = std::max(*best_parallax, rotation_free);
       if (rotation_free < options_.min_init_parallax_deg) {
+        *best_parallax = std::max(*best_parallax, rotation_free);
         Log("initialization: " + names + ": median parallax after rotation " + Fixed(rotation_free, 3) +
             " deg, too little");
         continue;
@@ -573,6 +574,7 @@ class Reconstructor {
       const auto result = RelativePose(pairs, static_cast<std::uint64_t>(j));
       if (!result.success || result.num_inliers < options_.min_init_inliers) {
         *why = names + ": relative pose " + result.BriefReport();
+        *best_parallax = std::max(*best_parallax, rotation_free);
         continue;
       }
       std::vector<double> parallax;
@@ -586,6 +588,7 @@ class Reconstructor {
       std::nth_element(parallax.begin(), parallax.begin() + parallax.size() / 2, parallax.end());
       const double median = parallax[parallax.size() / 2];
       Log("initialization: " + names + ": " + result.BriefReport() + ", median parallax " + Fixed(median, 3) + " deg");
+      *best_parallax = std::max(*best_parallax, median);
       if (median < options_.min_init_parallax_deg) continue;
       Rigid3 pose = result.model;  // rig_a_from_rig_j
       const double length = pose.translation.norm();
@@ -599,13 +602,30 @@ class Reconstructor {
     return {};
   }
 
+  // The rotation between two frames' rig-frame rays (d1 ~ r d2), by Wahba's problem fitted again
+  // without the quarter of the rays it fits worst: moving things (a car, waves, the operator)
+  // pull a least-squares rotation off, and their rays would then read as parallax.
+  Eigen::Matrix3d RobustRotation(const std::vector<Eigen::Vector3d>& d1, const std::vector<Eigen::Vector3d>& d2) const {
+    Eigen::Matrix3d r = BestRotation(d1, d2);
+    if (d1.size() < 8) return r;
+    std::vector<std::pair<double, size_t>> errors;
+    for (size_t i = 0; i < d1.size(); ++i) errors.emplace_back(AngleBetween(d1[i], r * d2[i]), i);
+    std::sort(errors.begin(), errors.end());
+    std::vector<Eigen::Vector3d> k1, k2;
+    for (size_t i = 0; i < errors.size() * 3 / 4; ++i) {
+      k1.push_back(d1[errors[i].second]);
+      k2.push_back(d2[errors[i].second]);
+    }
+    return BestRotation(k1, k2);
+  }
+
   double RotationFreeParallaxDeg(const std::vector<RigBearingPair>& pairs) const {
     std::vector<Eigen::Vector3d> d1, d2;
     for (const auto& p : pairs) {
       d1.push_back(geometry_.rig_from_cam[p.camera1].rotation * p.bearing1);
       d2.push_back(geometry_.rig_from_cam[p.camera2].rotation * p.bearing2);
     }
-    const Eigen::Matrix3d r = BestRotation(d1, d2);  // d1 ~ r d2
+    const Eigen::Matrix3d r = RobustRotation(d1, d2);
     std::vector<double> angles;
     for (size_t i = 0; i < d1.size(); ++i) angles.push_back(AngleBetween(d1[i], r * d2[i]) * 180 / M_PI);
     std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
@@ -614,8 +634,7 @@ class Reconstructor {
 
   // A central camera that never moves enough to triangulate (a tripod, a pure rotation) still
   // gets a pose for every frame, so that a car can stand in its scene: one position, and the
-  // rotation from frame to frame by Wahba's problem over the tracks they share (the 25 % worst
-  // rays of each pair dropped and the rotation fitted again).
+  // rotation from frame to frame by Wahba's problem over the tracks they share (RobustRotation).
   void StandStill(double best_parallax) {
     const int frames = static_cast<int>(used_.size());
     out_.warnings.push_back("the camera does not move enough to triangulate (median parallax at most " +
@@ -633,16 +652,7 @@ class Reconstructor {
           d1.push_back(geometry_.rig_from_cam[p.camera1].rotation * p.bearing1);
           d2.push_back(geometry_.rig_from_cam[p.camera2].rotation * p.bearing2);
         }
-        r = BestRotation(d1, d2);
-        std::vector<std::pair<double, int>> errors;
-        for (size_t i = 0; i < d1.size(); ++i) errors.emplace_back(AngleBetween(d1[i], r * d2[i]), static_cast<int>(i));
-        std::sort(errors.begin(), errors.end());
-        std::vector<Eigen::Vector3d> k1, k2;
-        for (size_t i = 0; i < std::max<size_t>(3, errors.size() * 3 / 4); ++i) {
-          k1.push_back(d1[errors[i].second]);
-          k2.push_back(d2[errors[i].second]);
-        }
-        r = BestRotation(k1, k2);
+        r = RobustRotation(d1, d2);
       }
       world_from_rig_[f].rotation = world_from_rig_[f - 1].rotation * r;
     }
