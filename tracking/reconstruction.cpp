@@ -643,18 +643,30 @@ class Reconstructor {
                             "position and only its rotation is tracked");
     standing_still_ = true;
     for (int f = 0; f < frames; ++f) registered_[f] = 1;
+    // Each frame against the earliest of f-1, f-2, f-4, ... that still shares enough tracks with
+    // it: chaining every frame to the one before adds each step's error to the next.
+    constexpr size_t kEnoughShared = 30;
     for (int f = 1; f < frames; ++f) {
-      const std::vector<RigBearingPair> pairs = SharedBearings(f - 1, f);
-      Eigen::Matrix3d r = Eigen::Matrix3d::Identity();  // rig_{f-1}_from_rig_f
+      int base = f - 1;
+      std::vector<RigBearingPair> pairs = SharedBearings(base, f);
+      for (int back = 2; f - back >= 0; back *= 2) {
+        std::vector<RigBearingPair> farther = SharedBearings(f - back, f);
+        if (farther.size() < kEnoughShared) break;
+        base = f - back;
+        pairs = std::move(farther);
+      }
+      Eigen::Matrix3d r = Eigen::Matrix3d::Identity();  // rig_base_from_rig_f
       if (pairs.size() >= 3) {
         std::vector<Eigen::Vector3d> d1, d2;
         for (const auto& p : pairs) {
-          d1.push_back(geometry_.rig_from_cam[p.camera1].rotation * p.bearing1);
-          d2.push_back(geometry_.rig_from_cam[p.camera2].rotation * p.bearing2);
+          const Eigen::Vector3d a = geometry_.rig_from_cam[p.camera1].rotation * p.bearing1;
+          const Eigen::Vector3d b = geometry_.rig_from_cam[p.camera2].rotation * p.bearing2;
+          d1.push_back(a);
+          d2.push_back(b);
         }
         r = RobustRotation(d1, d2);
       }
-      world_from_rig_[f].rotation = world_from_rig_[f - 1].rotation * r;
+      world_from_rig_[f].rotation = world_from_rig_[base].rotation * r;
     }
   }
 

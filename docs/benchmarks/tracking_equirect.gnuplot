@@ -81,46 +81,46 @@ odvr, gt H.264, no height	36	14.46
 odvr, gt H.264, no height	37	14.15
 odvr, gt H.264, no height	38	18.34
 odvr, gt H.264, no height	39	24.60
-colmap faces, gt H.264	0	106.13
-colmap faces, gt H.264	1	101.69
-colmap faces, gt H.264	2	80.48
-colmap faces, gt H.264	3	93.63
-colmap faces, gt H.264	4	93.16
-colmap faces, gt H.264	5	90.45
-colmap faces, gt H.264	6	57.70
-colmap faces, gt H.264	7	83.76
-colmap faces, gt H.264	8	31.85
-colmap faces, gt H.264	9	51.84
-colmap faces, gt H.264	10	42.64
-colmap faces, gt H.264	11	65.31
-colmap faces, gt H.264	12	73.31
-colmap faces, gt H.264	13	68.22
-colmap faces, gt H.264	14	63.26
-colmap faces, gt H.264	15	58.37
-colmap faces, gt H.264	16	66.35
-colmap faces, gt H.264	17	60.77
-colmap faces, gt H.264	18	67.12
-colmap faces, gt H.264	19	68.38
-colmap faces, gt H.264	20	85.11
-colmap faces, gt H.264	21	69.46
-colmap faces, gt H.264	22	72.25
-colmap faces, gt H.264	23	63.72
-colmap faces, gt H.264	24	68.15
-colmap faces, gt H.264	25	55.56
-colmap faces, gt H.264	26	53.64
-colmap faces, gt H.264	27	42.92
-colmap faces, gt H.264	28	17.87
-colmap faces, gt H.264	29	19.63
-colmap faces, gt H.264	30	15.48
-colmap faces, gt H.264	31	21.32
-colmap faces, gt H.264	32	23.16
-colmap faces, gt H.264	33	29.61
-colmap faces, gt H.264	34	48.68
-colmap faces, gt H.264	35	63.86
-colmap faces, gt H.264	36	98.03
-colmap faces, gt H.264	37	59.72
-colmap faces, gt H.264	38	98.50
-colmap faces, gt H.264	39	91.92
+colmap faces, gt H.264	0	58.06
+colmap faces, gt H.264	1	58.07
+colmap faces, gt H.264	2	63.37
+colmap faces, gt H.264	3	59.62
+colmap faces, gt H.264	4	33.87
+colmap faces, gt H.264	5	23.25
+colmap faces, gt H.264	6	17.54
+colmap faces, gt H.264	7	6.21
+colmap faces, gt H.264	8	20.67
+colmap faces, gt H.264	9	10.68
+colmap faces, gt H.264	10	22.07
+colmap faces, gt H.264	11	25.87
+colmap faces, gt H.264	12	35.32
+colmap faces, gt H.264	13	24.72
+colmap faces, gt H.264	14	38.80
+colmap faces, gt H.264	15	51.02
+colmap faces, gt H.264	16	51.82
+colmap faces, gt H.264	17	43.42
+colmap faces, gt H.264	18	40.56
+colmap faces, gt H.264	19	38.65
+colmap faces, gt H.264	20	42.58
+colmap faces, gt H.264	21	27.07
+colmap faces, gt H.264	22	40.74
+colmap faces, gt H.264	23	51.75
+colmap faces, gt H.264	24	44.35
+colmap faces, gt H.264	25	45.34
+colmap faces, gt H.264	26	28.31
+colmap faces, gt H.264	27	79.62
+colmap faces, gt H.264	28	148.85
+colmap faces, gt H.264	29	47.29
+colmap faces, gt H.264	30	48.10
+colmap faces, gt H.264	31	49.71
+colmap faces, gt H.264	32	33.74
+colmap faces, gt H.264	33	42.75
+colmap faces, gt H.264	34	56.40
+colmap faces, gt H.264	35	44.02
+colmap faces, gt H.264	36	50.80
+colmap faces, gt H.264	37	51.00
+colmap faces, gt H.264	38	51.07
+colmap faces, gt H.264	39	48.78
 odvr, stitched H.264	0	35.33
 odvr, stitched H.264	1	31.75
 odvr, stitched H.264	2	34.96
@@ -201,86 +201,86 @@ odvr, stitched H.264, no height	36	41.90
 odvr, stitched H.264, no height	37	35.21
 odvr, stitched H.264, no height	38	32.47
 odvr, stitched H.264, no height	39	48.64
-colmap faces, stitched H.264	0	60.31
-colmap faces, stitched H.264	1	62.11
-colmap faces, stitched H.264	2	34.75
-colmap faces, stitched H.264	3	42.03
-colmap faces, stitched H.264	4	27.99
-colmap faces, stitched H.264	5	20.44
-colmap faces, stitched H.264	6	16.28
-colmap faces, stitched H.264	7	14.82
-colmap faces, stitched H.264	8	12.97
-colmap faces, stitched H.264	9	20.90
-colmap faces, stitched H.264	10	19.03
-colmap faces, stitched H.264	11	52.41
-colmap faces, stitched H.264	12	24.67
-colmap faces, stitched H.264	13	23.98
-colmap faces, stitched H.264	14	20.76
-colmap faces, stitched H.264	15	41.43
-colmap faces, stitched H.264	16	55.06
-colmap faces, stitched H.264	17	44.23
-colmap faces, stitched H.264	18	41.58
-colmap faces, stitched H.264	19	77.04
-colmap faces, stitched H.264	20	59.86
-colmap faces, stitched H.264	21	54.17
-colmap faces, stitched H.264	22	63.99
-colmap faces, stitched H.264	23	68.41
-colmap faces, stitched H.264	24	62.94
-colmap faces, stitched H.264	25	52.56
-colmap faces, stitched H.264	26	42.35
-colmap faces, stitched H.264	27	12.48
-colmap faces, stitched H.264	28	26.86
-colmap faces, stitched H.264	29	45.43
-colmap faces, stitched H.264	30	73.56
-colmap faces, stitched H.264	31	67.36
-colmap faces, stitched H.264	32	37.92
-colmap faces, stitched H.264	33	36.55
-colmap faces, stitched H.264	34	56.33
-colmap faces, stitched H.264	35	48.85
-colmap faces, stitched H.264	36	24.27
-colmap faces, stitched H.264	37	23.80
-colmap faces, stitched H.264	38	21.38
-colmap faces, stitched H.264	39	35.94
-odvr rig	0	8.36
-odvr rig	1	7.48
-odvr rig	2	6.68
-odvr rig	3	5.98
-odvr rig	4	5.26
-odvr rig	5	3.56
-odvr rig	6	2.68
-odvr rig	7	3.51
-odvr rig	8	2.42
-odvr rig	9	3.34
-odvr rig	10	5.49
-odvr rig	11	2.58
-odvr rig	12	3.14
-odvr rig	13	3.80
-odvr rig	14	5.00
-odvr rig	15	6.35
-odvr rig	16	5.96
-odvr rig	17	5.63
-odvr rig	18	4.71
-odvr rig	19	5.18
-odvr rig	20	5.30
-odvr rig	21	4.37
-odvr rig	22	3.42
-odvr rig	23	6.34
-odvr rig	24	6.45
-odvr rig	25	5.62
-odvr rig	26	5.61
-odvr rig	27	5.85
-odvr rig	28	6.08
-odvr rig	29	3.02
-odvr rig	30	1.36
-odvr rig	31	2.61
-odvr rig	32	5.31
-odvr rig	33	2.84
-odvr rig	34	5.34
-odvr rig	35	5.78
-odvr rig	36	5.77
-odvr rig	37	6.32
-odvr rig	38	6.31
-odvr rig	39	6.47
+colmap faces, stitched H.264	0	46.16
+colmap faces, stitched H.264	1	97.01
+colmap faces, stitched H.264	2	86.21
+colmap faces, stitched H.264	3	65.31
+colmap faces, stitched H.264	4	46.77
+colmap faces, stitched H.264	5	47.02
+colmap faces, stitched H.264	6	43.94
+colmap faces, stitched H.264	7	32.41
+colmap faces, stitched H.264	8	32.36
+colmap faces, stitched H.264	9	21.71
+colmap faces, stitched H.264	10	18.19
+colmap faces, stitched H.264	11	32.78
+colmap faces, stitched H.264	12	39.36
+colmap faces, stitched H.264	13	51.05
+colmap faces, stitched H.264	14	68.32
+colmap faces, stitched H.264	15	55.08
+colmap faces, stitched H.264	16	78.94
+colmap faces, stitched H.264	17	76.87
+colmap faces, stitched H.264	18	90.95
+colmap faces, stitched H.264	19	81.75
+colmap faces, stitched H.264	20	85.06
+colmap faces, stitched H.264	21	54.25
+colmap faces, stitched H.264	22	49.40
+colmap faces, stitched H.264	23	56.67
+colmap faces, stitched H.264	24	38.94
+colmap faces, stitched H.264	25	30.40
+colmap faces, stitched H.264	26	22.37
+colmap faces, stitched H.264	27	13.98
+colmap faces, stitched H.264	28	12.89
+colmap faces, stitched H.264	29	7.49
+colmap faces, stitched H.264	30	6.35
+colmap faces, stitched H.264	31	4.26
+colmap faces, stitched H.264	32	25.19
+colmap faces, stitched H.264	33	16.23
+colmap faces, stitched H.264	34	38.56
+colmap faces, stitched H.264	35	55.70
+colmap faces, stitched H.264	36	58.88
+colmap faces, stitched H.264	37	55.65
+colmap faces, stitched H.264	38	76.62
+colmap faces, stitched H.264	39	79.83
+odvr rig	0	12.27
+odvr rig	1	11.22
+odvr rig	2	8.63
+odvr rig	3	6.72
+odvr rig	4	3.91
+odvr rig	5	3.92
+odvr rig	6	1.53
+odvr rig	7	2.27
+odvr rig	8	2.22
+odvr rig	9	2.04
+odvr rig	10	4.15
+odvr rig	11	6.00
+odvr rig	12	5.08
+odvr rig	13	7.80
+odvr rig	14	2.84
+odvr rig	15	3.71
+odvr rig	16	4.90
+odvr rig	17	4.15
+odvr rig	18	4.49
+odvr rig	19	4.24
+odvr rig	20	6.56
+odvr rig	21	9.66
+odvr rig	22	6.10
+odvr rig	23	7.72
+odvr rig	24	5.33
+odvr rig	25	7.14
+odvr rig	26	5.18
+odvr rig	27	4.03
+odvr rig	28	4.59
+odvr rig	29	0.51
+odvr rig	30	3.86
+odvr rig	31	4.92
+odvr rig	32	4.38
+odvr rig	33	5.15
+odvr rig	34	3.21
+odvr rig	35	6.56
+odvr rig	36	3.44
+odvr rig	37	4.36
+odvr rig	38	7.83
+odvr rig	39	8.58
 EOD
 set datafile separator '\t'
 set multiplot layout 2,1
