@@ -27,8 +27,8 @@ struct ExportCommand {
   std::string path = "W:3s";
   std::string out;
   std::string size = "1280x720";
-  int frames = 0;
-  double fps = 0;
+  int frames = -1;  // -1: the drive path's duration
+  double fps = -1;  // -1: the video's
 };
 
 std::pair<int, int> ParseExportSize(const std::string& text) {
@@ -60,7 +60,8 @@ int RunExport(ExportCommand& c) {
     script_text.erase(std::remove_if(script_text.begin(), script_text.end(), ::isspace), script_text.end());
   }
   const auto script = ParseDriveScript(script_text);
-  if (c.frames < 0) throw UsageError("--frames", "must be non-negative");
+  if (c.frames == 0 || c.frames < -1) throw UsageError("--frames", "must be at least 1");
+  if (c.fps != -1 && !(c.fps > 0 && c.fps <= 1000)) throw UsageError("--fps", "must be in (0, 1000]");
 
   gl::HeadlessContext context;
   AugmentedScene scene(c.scene);

@@ -161,5 +161,20 @@ TEST(RunPlayGL, ExportWritesAClipAtomically) {
   fs::remove_all(dir);
 }
 
+// --fps 0, -5 or nan became 25 and --frames 0 wrote the whole path: now usage errors.
+TEST(RunPlay, ExportRefusesAFrameRateOrFrameCountItCannotHonour) {
+  const std::string base = "export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
+                           (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
+                           " --out /nonexistent/clip.mp4";
+  for (const char* fps : {"0", "-5", "nan"}) {
+    const auto r = RunOdvr(base + " --fps " + fps);
+    EXPECT_EQ(r.exit_code, 2) << fps << ": " << r.err;
+    EXPECT_NE(r.err.find("--fps"), std::string::npos) << r.err;
+  }
+  const auto r = RunOdvr(base + " --frames 0");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--frames: must be at least 1"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace odvr::app
