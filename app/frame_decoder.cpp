@@ -73,6 +73,7 @@ std::optional<DecodedFrame> FrameDecoder::Get(long index, std::chrono::milliseco
   std::unique_lock lock(mutex_);
   const auto deadline = std::chrono::steady_clock::now() + wait;
   for (;;) {
+    if (end_index_ == 0) return std::nullopt;  // the stream ended before its first frame: none will come
     if (end_index_ >= 0) index = std::min(index, std::max(0L, end_index_ - 1));
     while (!queue_.empty() && queue_.front().index < index) queue_.pop_front();
     if (!queue_.empty() && queue_.front().index == index) {

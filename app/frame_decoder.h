@@ -28,7 +28,8 @@ class FrameDecoder {
   FrameDecoder(const FrameDecoder&) = delete;
   FrameDecoder& operator=(const FrameDecoder&) = delete;
 
-  // The frame `index` if it arrives within `wait`; frames before it are discarded.
+  // The frame `index` if it arrives within `wait`; frames before it are discarded. At once
+  // nothing when the stream has ended without a decodable frame (available_frames() == 0).
   std::optional<DecodedFrame> Get(long index, std::chrono::milliseconds wait);
 
   long frame_count() const { return frame_count_; }

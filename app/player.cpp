@@ -64,6 +64,7 @@ class Playback {
                                                : shown_index_ < 0         ? 5000
                                                                           : 30);
       auto f = decoder_.Get(wanted, patience);
+      if (!f && decoder_.available_frames() == 0) throw Error(video_, "holds no decodable frame");
       if (!f && wait == Wait::kForTheFrame)
         throw Error(video_, "frame " + std::to_string(wanted) + " was not decoded within " +
                                 std::to_string(kHeadlessFrameWaitMs / 1000) + " s");

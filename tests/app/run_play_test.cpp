@@ -5,6 +5,8 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
@@ -174,6 +176,29 @@ TEST(RunPlay, ExportRefusesAFrameRateOrFrameCountItCannotHonour) {
   const auto r = RunOdvr(base + " --frames 0");
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_NE(r.err.find("--frames: must be at least 1"), std::string::npos) << r.err;
+}
+
+// A video whose every frame is undecodable (the demo clip with its media data zeroed): play and
+// augmented play end with one line naming it, where they waited 5 s a frame and wrote black.
+TEST(RunPlayGL, AVideoWithNoDecodableFrameFailsAtOnce) {
+  const fs::path dir = TempDir("odvr_play_undecodable");
+  std::ifstream in(kDemo / "street.mp4", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto mdat = bytes.find("mdat");
+  ASSERT_NE(mdat, std::string::npos);
+  for (std::size_t k = mdat + 68; k < bytes.size() && k < mdat + 600000; ++k) bytes[k] = '\0';
+  const fs::path clip = dir / "undecodable.mp4";
+  std::ofstream(clip, std::ios::binary) << bytes;
+  const auto r =
+      RunOdvr("play --headless --frames 3 --size 32x18 --out " + (dir / "out").string() + " " + clip.string());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find(clip.string() + ": holds no decodable frame"), std::string::npos) << r.err;
+  const auto a =
+      RunOdvr("play --headless --frames 3 --size 32x18 --out " + (dir / "out").string() + " " + clip.string() +
+              " --car " + (kDemo / "car.glb").string() + " --trajectory " + (kDemo / "trajectory_gt.json").string());
+  EXPECT_EQ(a.exit_code, 1) << a.err;
+  EXPECT_NE(a.err.find(clip.string()), std::string::npos) << a.err;
+  fs::remove_all(dir);
 }
 
 }  // namespace
