@@ -219,11 +219,19 @@ const gl::Texture& AugmentedScene::composite() const { return impl_->renderer->c
 double AugmentedScene::fps() const { return impl_->decoder->fps(); }
 long AugmentedScene::video_frames() const { return impl_->decoder->available_frames(); }
 
+namespace {
+constexpr double kStandingPathM = 0.5, kStandingAheadM = 4.0;
+}  // namespace
+
 void AugmentedScene::PlaceCar(double s_m, double lateral_m) {
   const auto& p = impl_->positions;
   glm::dvec3 pos = p[0], dir{1, 0, 0};
-  if (p.size() == 1) {
-    dir = impl_->world_from_pano[0] * glm::dvec3(0, 0, -1);  // the panorama's forward (equirect −z)
+  if (p.size() == 1 || picker_->path_length() < kStandingPathM) {
+    // A camera that stands still (a tripod, or one pose) has no road to put the car on: it stands
+    // on the ground s_m ahead of the camera (at least kStandingAheadM), not over it.
+    dir = impl_->world_from_pano[0] * glm::dvec3(1, 0, 0);  // the panorama's forward: the rig's x
+    dir.y = 0;
+    if (glm::length(dir) > 1e-9) pos = p[0] + std::max(s_m, kStandingAheadM) * glm::normalize(dir);
   } else {
     s_m = std::clamp(s_m, 0.0, picker_->path_length());
     double s = 0;

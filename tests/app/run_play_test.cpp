@@ -201,5 +201,32 @@ TEST(RunPlayGL, AVideoWithNoDecodableFrameFailsAtOnce) {
   fs::remove_all(dir);
 }
 
+// A camera that never moves (every pose the demo's first, as a tripod reconstruction gives) put
+// the car over the camera; it stands on the road ahead of it, as on a moving trajectory.
+TEST(RunPlayGL, AStandingCameraGetsItsCarAheadNotOverIt) {
+  const fs::path dir = TempDir("odvr_play_standing");
+  auto trajectory = nlohmann::json::parse(std::ifstream(kDemo / "trajectory_gt.json"));
+  const auto first = trajectory["frames"][0]["world_from_rig"];
+  for (auto& f : trajectory["frames"]) {
+    f["world_from_rig"] = first;
+    f.erase("world_yup_from_rig");
+  }
+  std::ofstream(dir / "standing.json") << trajectory.dump();
+  const auto r = RunOdvr("play --headless --size 96x54 --frames 1 --json --out " + (dir / "out").string() + kSmall +
+                         (kDemo / "street.mp4").string() + " --car " + (kDemo / "car.glb").string() + " --trajectory " +
+                         (dir / "standing.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto f = nlohmann::json::parse(r.out)["frames"][0];
+  // The camera in odvr's Y-up world: (x, z_up, -y) of the Z-up pose.
+  const double cx = first[0][3].get<double>(), cz = -first[1][3].get<double>();
+  const double ahead = f["car_world_xz"][0].get<double>() - cx, aside = f["car_world_xz"][1].get<double>() - cz;
+  std::printf("standing camera: the car %.2f m ahead, %.2f m aside, %d pixels\n", ahead, aside,
+              f["car_pixels"].get<int>());
+  EXPECT_GT(ahead, 4.0) << "along the camera's forward (+x)";
+  EXPECT_LT(std::abs(aside), 0.5);
+  EXPECT_GT(f["car_pixels"].get<int>(), 20);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace odvr::app
