@@ -167,6 +167,33 @@ struct AugmentedScene::Impl {
   }
 };
 
+namespace {
+
+// A pose far off the others (a corrupt file, a failed reconstruction) would send the car and the
+// view there: one whose step from the previous frame is both over 10 m and over 50 times the
+// median step is refused, naming the frame, as is any position beyond 1000 km.
+void CheckPlausiblePath(const std::string& trajectory, const std::vector<int>& frames,
+                        const std::vector<glm::dvec3>& positions) {
+  constexpr double kFarM = 1e6, kJumpM = 10, kJumpOverMedian = 50;
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    if (!(glm::length(positions[i]) < kFarM))
+      throw Error(trajectory, "frame " + std::to_string(frames[i]) + ": the camera is " +
+                                  std::to_string(glm::length(positions[i])) + " m from the origin, not a place");
+  std::vector<double> steps;
+  for (std::size_t i = 1; i < positions.size(); ++i) steps.push_back(glm::distance(positions[i - 1], positions[i]));
+  if (steps.size() < 3) return;
+  std::vector<double> sorted = steps;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  for (std::size_t i = 0; i < steps.size(); ++i)
+    if (steps[i] > kJumpM && steps[i] > kJumpOverMedian * median)
+      throw Error(trajectory, "frame " + std::to_string(frames[i + 1]) + ": the camera jumps " +
+                                  std::to_string(steps[i]) + " m from the frame before (the median step is " +
+                                  std::to_string(median) + " m): an outlier pose");
+}
+
+}  // namespace
+
 AugmentedScene::AugmentedScene(AugmentedOptions options)
     : options_(std::move(options)), impl_(std::make_unique<Impl>()) {
   options_.Check();
@@ -201,6 +228,7 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
   if (frame_index_.empty())
     throw Error(options_.trajectory, "shares no frame index with " + options_.video + " (" +
                                          std::to_string(im.announced_frames) + " frames)");
+  CheckPlausiblePath(options_.trajectory, frame_index_, im.positions);
   for (const auto& p : im.positions) im.rig_height += p.y / static_cast<double>(im.positions.size());
   picker_ = std::make_unique<FramePicker>(im.positions, options_.picker);
 

@@ -10,6 +10,8 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
+#include <utility>
+#include <vector>
 
 #include "tests/app/run_odvr.h"
 
@@ -225,6 +227,24 @@ TEST(RunPlayGL, AStandingCameraGetsItsCarAheadNotOverIt) {
   EXPECT_GT(ahead, 4.0) << "along the camera's forward (+x)";
   EXPECT_LT(std::abs(aside), 0.5);
   EXPECT_GT(f["car_pixels"].get<int>(), 20);
+  fs::remove_all(dir);
+}
+
+// A pose far off the path (a fuzzed translation of 9.2e18, a jump of 200 m) sent the car there:
+// refused, naming the frame.
+TEST(RunPlayGL, AnOutlierPoseIsRefusedNamingItsFrame) {
+  const fs::path dir = TempDir("odvr_play_outlier");
+  for (const auto& [value, needle] : std::vector<std::pair<double, std::string>>{{9.2e18, "frame 7: the camera is"},
+                                                                                 {200, "frame 7: the camera jumps"}}) {
+    auto trajectory = nlohmann::json::parse(std::ifstream(kDemo / "trajectory_gt.json"));
+    trajectory["frames"][7]["world_from_rig"][1][3] = value;
+    std::ofstream(dir / "outlier.json") << trajectory.dump();
+    const auto r = RunOdvr("play --headless --size 32x18 --frames 1 --out " + (dir / "out").string() + kSmall +
+                           (kDemo / "street.mp4").string() + " --car " + (kDemo / "car.glb").string() +
+                           " --trajectory " + (dir / "outlier.json").string());
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find((dir / "outlier.json").string() + ": " + needle), std::string::npos) << r.err;
+  }
   fs::remove_all(dir);
 }
 
