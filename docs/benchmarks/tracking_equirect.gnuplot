@@ -81,46 +81,46 @@ odvr, gt H.264, no height	36	14.46
 odvr, gt H.264, no height	37	14.15
 odvr, gt H.264, no height	38	18.34
 odvr, gt H.264, no height	39	24.60
-colmap faces, gt H.264	0	58.06
-colmap faces, gt H.264	1	58.07
-colmap faces, gt H.264	2	63.37
-colmap faces, gt H.264	3	59.62
-colmap faces, gt H.264	4	33.87
-colmap faces, gt H.264	5	23.25
-colmap faces, gt H.264	6	17.54
-colmap faces, gt H.264	7	6.21
-colmap faces, gt H.264	8	20.67
-colmap faces, gt H.264	9	10.68
-colmap faces, gt H.264	10	22.07
-colmap faces, gt H.264	11	25.87
-colmap faces, gt H.264	12	35.32
-colmap faces, gt H.264	13	24.72
-colmap faces, gt H.264	14	38.80
-colmap faces, gt H.264	15	51.02
-colmap faces, gt H.264	16	51.82
-colmap faces, gt H.264	17	43.42
-colmap faces, gt H.264	18	40.56
-colmap faces, gt H.264	19	38.65
-colmap faces, gt H.264	20	42.58
-colmap faces, gt H.264	21	27.07
-colmap faces, gt H.264	22	40.74
-colmap faces, gt H.264	23	51.75
-colmap faces, gt H.264	24	44.35
-colmap faces, gt H.264	25	45.34
-colmap faces, gt H.264	26	28.31
-colmap faces, gt H.264	27	79.62
-colmap faces, gt H.264	28	148.85
-colmap faces, gt H.264	29	47.29
-colmap faces, gt H.264	30	48.10
-colmap faces, gt H.264	31	49.71
-colmap faces, gt H.264	32	33.74
-colmap faces, gt H.264	33	42.75
-colmap faces, gt H.264	34	56.40
-colmap faces, gt H.264	35	44.02
-colmap faces, gt H.264	36	50.80
-colmap faces, gt H.264	37	51.00
-colmap faces, gt H.264	38	51.07
-colmap faces, gt H.264	39	48.78
+colmap faces, gt H.264	0	48.51
+colmap faces, gt H.264	1	45.82
+colmap faces, gt H.264	2	49.74
+colmap faces, gt H.264	3	46.82
+colmap faces, gt H.264	4	27.11
+colmap faces, gt H.264	5	17.54
+colmap faces, gt H.264	6	17.26
+colmap faces, gt H.264	7	12.19
+colmap faces, gt H.264	8	29.43
+colmap faces, gt H.264	9	7.35
+colmap faces, gt H.264	10	28.73
+colmap faces, gt H.264	11	23.76
+colmap faces, gt H.264	12	31.04
+colmap faces, gt H.264	13	21.20
+colmap faces, gt H.264	14	26.64
+colmap faces, gt H.264	15	51.31
+colmap faces, gt H.264	16	45.70
+colmap faces, gt H.264	17	40.21
+colmap faces, gt H.264	18	31.93
+colmap faces, gt H.264	19	25.33
+colmap faces, gt H.264	20	21.93
+colmap faces, gt H.264	21	20.67
+colmap faces, gt H.264	22	32.33
+colmap faces, gt H.264	23	59.34
+colmap faces, gt H.264	24	46.90
+colmap faces, gt H.264	25	39.06
+colmap faces, gt H.264	26	14.76
+colmap faces, gt H.264	27	71.78
+colmap faces, gt H.264	28	115.60
+colmap faces, gt H.264	29	32.76
+colmap faces, gt H.264	30	34.61
+colmap faces, gt H.264	31	49.02
+colmap faces, gt H.264	32	20.35
+colmap faces, gt H.264	33	33.38
+colmap faces, gt H.264	34	45.72
+colmap faces, gt H.264	35	17.69
+colmap faces, gt H.264	36	24.78
+colmap faces, gt H.264	37	36.53
+colmap faces, gt H.264	38	49.50
+colmap faces, gt H.264	39	74.87
 odvr, stitched H.264	0	35.33
 odvr, stitched H.264	1	31.75
 odvr, stitched H.264	2	34.96
@@ -201,86 +201,126 @@ odvr, stitched H.264, no height	36	41.90
 odvr, stitched H.264, no height	37	35.21
 odvr, stitched H.264, no height	38	32.47
 odvr, stitched H.264, no height	39	48.64
-colmap faces, stitched H.264	0	46.16
-colmap faces, stitched H.264	1	97.01
-colmap faces, stitched H.264	2	86.21
-colmap faces, stitched H.264	3	65.31
-colmap faces, stitched H.264	4	46.77
-colmap faces, stitched H.264	5	47.02
-colmap faces, stitched H.264	6	43.94
-colmap faces, stitched H.264	7	32.41
-colmap faces, stitched H.264	8	32.36
-colmap faces, stitched H.264	9	21.71
-colmap faces, stitched H.264	10	18.19
-colmap faces, stitched H.264	11	32.78
-colmap faces, stitched H.264	12	39.36
-colmap faces, stitched H.264	13	51.05
-colmap faces, stitched H.264	14	68.32
-colmap faces, stitched H.264	15	55.08
-colmap faces, stitched H.264	16	78.94
-colmap faces, stitched H.264	17	76.87
-colmap faces, stitched H.264	18	90.95
-colmap faces, stitched H.264	19	81.75
-colmap faces, stitched H.264	20	85.06
-colmap faces, stitched H.264	21	54.25
-colmap faces, stitched H.264	22	49.40
-colmap faces, stitched H.264	23	56.67
-colmap faces, stitched H.264	24	38.94
-colmap faces, stitched H.264	25	30.40
-colmap faces, stitched H.264	26	22.37
-colmap faces, stitched H.264	27	13.98
-colmap faces, stitched H.264	28	12.89
-colmap faces, stitched H.264	29	7.49
-colmap faces, stitched H.264	30	6.35
-colmap faces, stitched H.264	31	4.26
-colmap faces, stitched H.264	32	25.19
-colmap faces, stitched H.264	33	16.23
-colmap faces, stitched H.264	34	38.56
-colmap faces, stitched H.264	35	55.70
-colmap faces, stitched H.264	36	58.88
-colmap faces, stitched H.264	37	55.65
-colmap faces, stitched H.264	38	76.62
-colmap faces, stitched H.264	39	79.83
-odvr rig	0	12.27
-odvr rig	1	11.22
-odvr rig	2	8.63
-odvr rig	3	6.72
-odvr rig	4	3.91
-odvr rig	5	3.92
-odvr rig	6	1.53
-odvr rig	7	2.27
-odvr rig	8	2.22
-odvr rig	9	2.04
-odvr rig	10	4.15
-odvr rig	11	6.00
-odvr rig	12	5.08
-odvr rig	13	7.80
-odvr rig	14	2.84
-odvr rig	15	3.71
-odvr rig	16	4.90
-odvr rig	17	4.15
-odvr rig	18	4.49
-odvr rig	19	4.24
-odvr rig	20	6.56
-odvr rig	21	9.66
-odvr rig	22	6.10
-odvr rig	23	7.72
-odvr rig	24	5.33
-odvr rig	25	7.14
-odvr rig	26	5.18
-odvr rig	27	4.03
-odvr rig	28	4.59
-odvr rig	29	0.51
-odvr rig	30	3.86
-odvr rig	31	4.92
-odvr rig	32	4.38
-odvr rig	33	5.15
-odvr rig	34	3.21
-odvr rig	35	6.56
-odvr rig	36	3.44
-odvr rig	37	4.36
-odvr rig	38	7.83
-odvr rig	39	8.58
+colmap faces, stitched H.264	0	59.73
+colmap faces, stitched H.264	1	107.43
+colmap faces, stitched H.264	2	91.36
+colmap faces, stitched H.264	3	68.74
+colmap faces, stitched H.264	4	47.79
+colmap faces, stitched H.264	5	43.63
+colmap faces, stitched H.264	6	43.41
+colmap faces, stitched H.264	7	25.71
+colmap faces, stitched H.264	8	27.71
+colmap faces, stitched H.264	9	11.55
+colmap faces, stitched H.264	10	18.46
+colmap faces, stitched H.264	11	36.41
+colmap faces, stitched H.264	12	41.43
+colmap faces, stitched H.264	13	53.62
+colmap faces, stitched H.264	14	71.72
+colmap faces, stitched H.264	15	55.77
+colmap faces, stitched H.264	16	80.99
+colmap faces, stitched H.264	17	77.33
+colmap faces, stitched H.264	18	91.03
+colmap faces, stitched H.264	19	79.66
+colmap faces, stitched H.264	20	87.76
+colmap faces, stitched H.264	21	57.21
+colmap faces, stitched H.264	22	47.97
+colmap faces, stitched H.264	23	57.61
+colmap faces, stitched H.264	24	40.49
+colmap faces, stitched H.264	25	28.05
+colmap faces, stitched H.264	26	20.36
+colmap faces, stitched H.264	27	18.05
+colmap faces, stitched H.264	28	7.65
+colmap faces, stitched H.264	29	13.76
+colmap faces, stitched H.264	30	7.77
+colmap faces, stitched H.264	31	9.21
+colmap faces, stitched H.264	32	24.16
+colmap faces, stitched H.264	33	16.08
+colmap faces, stitched H.264	34	40.64
+colmap faces, stitched H.264	35	59.49
+colmap faces, stitched H.264	36	56.18
+colmap faces, stitched H.264	37	64.52
+colmap faces, stitched H.264	38	83.60
+colmap faces, stitched H.264	39	83.03
+odvr, stitched H.264 at 2048	0	35.75
+odvr, stitched H.264 at 2048	1	31.77
+odvr, stitched H.264 at 2048	2	25.22
+odvr, stitched H.264 at 2048	3	20.62
+odvr, stitched H.264 at 2048	4	18.68
+odvr, stitched H.264 at 2048	5	20.49
+odvr, stitched H.264 at 2048	6	14.82
+odvr, stitched H.264 at 2048	7	8.98
+odvr, stitched H.264 at 2048	8	3.11
+odvr, stitched H.264 at 2048	9	4.94
+odvr, stitched H.264 at 2048	10	14.90
+odvr, stitched H.264 at 2048	11	18.02
+odvr, stitched H.264 at 2048	12	4.33
+odvr, stitched H.264 at 2048	13	22.80
+odvr, stitched H.264 at 2048	14	20.91
+odvr, stitched H.264 at 2048	15	19.92
+odvr, stitched H.264 at 2048	16	24.51
+odvr, stitched H.264 at 2048	17	30.83
+odvr, stitched H.264 at 2048	18	32.48
+odvr, stitched H.264 at 2048	19	28.28
+odvr, stitched H.264 at 2048	20	23.33
+odvr, stitched H.264 at 2048	21	16.89
+odvr, stitched H.264 at 2048	22	11.35
+odvr, stitched H.264 at 2048	23	8.24
+odvr, stitched H.264 at 2048	24	13.70
+odvr, stitched H.264 at 2048	25	9.45
+odvr, stitched H.264 at 2048	26	14.06
+odvr, stitched H.264 at 2048	27	6.73
+odvr, stitched H.264 at 2048	28	6.63
+odvr, stitched H.264 at 2048	29	5.00
+odvr, stitched H.264 at 2048	30	6.28
+odvr, stitched H.264 at 2048	31	7.83
+odvr, stitched H.264 at 2048	32	2.27
+odvr, stitched H.264 at 2048	33	4.96
+odvr, stitched H.264 at 2048	34	22.01
+odvr, stitched H.264 at 2048	35	27.62
+odvr, stitched H.264 at 2048	36	37.09
+odvr, stitched H.264 at 2048	37	13.98
+odvr, stitched H.264 at 2048	38	43.10
+odvr, stitched H.264 at 2048	39	12.92
+odvr rig	0	8.80
+odvr rig	1	7.78
+odvr rig	2	6.51
+odvr rig	3	5.67
+odvr rig	4	4.58
+odvr rig	5	3.23
+odvr rig	6	1.77
+odvr rig	7	3.17
+odvr rig	8	2.32
+odvr rig	9	3.08
+odvr rig	10	3.50
+odvr rig	11	6.32
+odvr rig	12	6.47
+odvr rig	13	3.43
+odvr rig	14	4.76
+odvr rig	15	4.41
+odvr rig	16	5.68
+odvr rig	17	4.74
+odvr rig	18	4.00
+odvr rig	19	4.74
+odvr rig	20	2.94
+odvr rig	21	2.44
+odvr rig	22	6.86
+odvr rig	23	2.87
+odvr rig	24	2.78
+odvr rig	25	1.88
+odvr rig	26	1.02
+odvr rig	27	1.54
+odvr rig	28	5.17
+odvr rig	29	4.12
+odvr rig	30	3.67
+odvr rig	31	2.36
+odvr rig	32	3.94
+odvr rig	33	1.47
+odvr rig	34	2.98
+odvr rig	35	3.79
+odvr rig	36	5.11
+odvr rig	37	5.63
+odvr rig	38	2.56
+odvr rig	39	5.95
 EOD
 set datafile separator '\t'
 set multiplot layout 2,1
@@ -290,11 +330,11 @@ set size ratio -1
 set title 'trajectory seen from above (ground-truth world, estimates similarity-aligned)'
 set xlabel 'x (m)'
 set ylabel 'y (m)'
-plot 'tracking_equirect_paths.tsv' using (strcol(1) eq 'ground truth' ? $3 : 1/0):4 with lines lw 5 lc rgb '#aaaaaa' title 'ground truth', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, gt H.264' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 1 title 'odvr, gt H.264', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, gt H.264, no height' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 2 title 'odvr, gt H.264, no height', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'colmap faces, gt H.264' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 3 title 'colmap faces, gt H.264', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, stitched H.264' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 4 title 'odvr, stitched H.264', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, stitched H.264, no height' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 5 title 'odvr, stitched H.264, no height', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'colmap faces, stitched H.264' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 6 title 'colmap faces, stitched H.264', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr rig' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 7 title 'odvr rig'
+plot 'tracking_equirect_paths.tsv' using (strcol(1) eq 'ground truth' ? $3 : 1/0):4 with lines lw 5 lc rgb '#aaaaaa' title 'ground truth', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, gt H.264' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 1 title 'odvr, gt H.264', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, gt H.264, no height' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 2 title 'odvr, gt H.264, no height', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'colmap faces, gt H.264' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 3 title 'colmap faces, gt H.264', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, stitched H.264' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 4 title 'odvr, stitched H.264', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, stitched H.264, no height' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 5 title 'odvr, stitched H.264, no height', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'colmap faces, stitched H.264' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 6 title 'colmap faces, stitched H.264', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr, stitched H.264 at 2048' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 7 title 'odvr, stitched H.264 at 2048', 'tracking_equirect_paths.tsv' using (strcol(1) eq 'odvr rig' ? $3 : 1/0):4 with linespoints pt 7 ps 0.5 lc 8 title 'odvr rig'
 set size noratio
 set title 'position error after the alignment'
 set xlabel 'frame'
 set ylabel 'mm'
 set logscale y
-plot $errors using (strcol(1) eq 'odvr, gt H.264' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 1 title 'odvr, gt H.264', $errors using (strcol(1) eq 'odvr, gt H.264, no height' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 2 title 'odvr, gt H.264, no height', $errors using (strcol(1) eq 'colmap faces, gt H.264' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 3 title 'colmap faces, gt H.264', $errors using (strcol(1) eq 'odvr, stitched H.264' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 4 title 'odvr, stitched H.264', $errors using (strcol(1) eq 'odvr, stitched H.264, no height' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 5 title 'odvr, stitched H.264, no height', $errors using (strcol(1) eq 'colmap faces, stitched H.264' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 6 title 'colmap faces, stitched H.264', $errors using (strcol(1) eq 'odvr rig' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 7 title 'odvr rig'
+plot $errors using (strcol(1) eq 'odvr, gt H.264' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 1 title 'odvr, gt H.264', $errors using (strcol(1) eq 'odvr, gt H.264, no height' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 2 title 'odvr, gt H.264, no height', $errors using (strcol(1) eq 'colmap faces, gt H.264' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 3 title 'colmap faces, gt H.264', $errors using (strcol(1) eq 'odvr, stitched H.264' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 4 title 'odvr, stitched H.264', $errors using (strcol(1) eq 'odvr, stitched H.264, no height' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 5 title 'odvr, stitched H.264, no height', $errors using (strcol(1) eq 'colmap faces, stitched H.264' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 6 title 'colmap faces, stitched H.264', $errors using (strcol(1) eq 'odvr, stitched H.264 at 2048' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 7 title 'odvr, stitched H.264 at 2048', $errors using (strcol(1) eq 'odvr rig' ? $2 : 1/0):($3 > 0.01 ? $3 : 0.01) with linespoints pt 7 ps 0.5 lc 8 title 'odvr rig'
 unset multiplot
