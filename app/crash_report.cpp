@@ -72,11 +72,19 @@ void InstallCrashReport() {
   sigemptyset(&action.sa_mask);
   action.sa_flags = SA_RESETHAND | SA_NODEFER;
   for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT}) sigaction(sig, &action, nullptr);
+}
+
+void InstallInterruptCleanup() {
   struct sigaction interrupt {};
   interrupt.sa_handler = OnInterrupt;
   sigemptyset(&interrupt.sa_mask);
   interrupt.sa_flags = SA_RESETHAND;
-  for (int sig : {SIGINT, SIGTERM}) sigaction(sig, &interrupt, nullptr);
+  // A signal ignored when odvr started (nohup, a background job) stays ignored.
+  for (int sig : {SIGINT, SIGTERM}) {
+    struct sigaction before {};
+    if (sigaction(sig, nullptr, &before) == 0 && before.sa_handler == SIG_IGN) continue;
+    sigaction(sig, &interrupt, nullptr);
+  }
 }
 
 }  // namespace odvr::app

@@ -2,10 +2,12 @@
 // A fatal signal (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT) prints its name and the stack, as
 // module(+offset) frames that addr2line resolves against the same build, then ends the process
 // with that signal as before. A crash on a machine we cannot debug on (a GPU host reached
-// through scripts/gpu_run.sh, with no debugger) then says where it happened. SIGINT and SIGTERM
-// remove the temporaries of unfinished atomic writes (engine/core/atomic_file.h) first.
+// through scripts/gpu_run.sh, with no debugger) then says where it happened.
 namespace odvr::app {
 
 void InstallCrashReport();
+// SIGINT and SIGTERM remove the temporaries of unfinished atomic writes, then end the process by
+// the signal. Installed in every build (the crash report is left to a sanitizer where there is one).
+void InstallInterruptCleanup();
 
 }  // namespace odvr::app
