@@ -156,7 +156,14 @@ std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& 
       Reference r;
       r.name = im.at("name").get<std::string>();
       r.model = repo / j.at("model").get<std::string>();
-      r.env = image::LoadImage(repo / im.at("env").get<std::string>(), {.max_width = 8192, .require_equirect = true});
+      // The maps are the project's shared data (../shared/data/env), absent from a user's clone:
+      // a reference without its map is left out, as the street reference is without street_a.
+      const fs::path env = repo / im.at("env").get<std::string>();
+      if (!fs::exists(env)) {
+        spdlog::warn("bench render: reference {} left out: its environment map {} is absent", r.name, env.string());
+        continue;
+      }
+      r.env = image::LoadImage(env, {.max_width = 8192, .require_equirect = true});
       image::SanitizePixels(&r.env);  // Cycles clamps the lossy EXR's negative pixels to 0 too
       if (ground_bounce)
         ReplaceLowerHemisphereByGround(&r.env, j.at("catcher").at("albedo_seen_by_the_car").get<double>(),

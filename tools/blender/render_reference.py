@@ -5,7 +5,7 @@ Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
 
   one image:
     blender -b --factory-startup --python tools/blender/render_reference.py -- \
-        --model media/demo/car.glb --env media/env/sky.exr \
+        --model media/demo/car.glb --env ../shared/data/env/sky.exr \
         --camera 5.2,1.9,4.4,0,0.55,0,30 --size 320x180 --spp 256 --material glossy --out /tmp/ref/sky_glossy
 
   the committed set (media/reference/, see media/README.md):
@@ -592,8 +592,8 @@ def verify_env(out_dir, threads):
 
 REFERENCE_SET = {
     "model": "media/demo/car.glb",
-    "envs": [("sky", "media/env/sky.exr"), ("sunset", "media/env/sunset.exr"),
-             ("studio", "media/env/studio.exr")],
+    "envs": [("sky", "../shared/data/env/sky.exr"), ("sunset", "../shared/data/env/sunset.exr"),
+             ("studio", "../shared/data/env/studio.exr")],
     "materials": ["diffuse", "glossy"],
     "camera": (5.2, 1.9, 4.4, 0.0, 0.55, 0.0, 30.0),
     "size": (320, 180),
