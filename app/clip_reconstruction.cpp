@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "capture/image_file.h"
 #include "capture/source.h"
 #include "engine/core/error.h"
 
@@ -35,8 +36,9 @@ namespace {
 cv::Mat IgnoreMask(const ClipInput& in, int width) {
   cv::Mat ignore = capture::NadirCapMask(width, width / 2, in.nadir_cap_deg);
   if (in.mask.empty()) return ignore;
-  const cv::Mat mask = cv::imread(in.mask, cv::IMREAD_GRAYSCALE);
-  if (mask.empty()) throw Error(in.mask, "cannot read the mask image");
+  std::string problem;
+  const cv::Mat mask = capture::ReadImageFile(in.mask, cv::IMREAD_GRAYSCALE, &problem);
+  if (mask.empty()) throw Error(in.mask, "cannot read the mask image: " + problem);
   if (mask.cols != 2 * mask.rows)
     throw Error(in.mask, "is " + std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
                              ", not an equirectangular 2:1 mask");

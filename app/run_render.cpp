@@ -107,7 +107,11 @@ int RunRender(const RenderCliOptions& o) {
           throw UsageError("--env-rotation", "is not a rotation matrix (R^T R != I)");
   }
   std::vector<double> cam;
-  if (!o.camera.empty()) cam = Numbers(o.camera, "--camera", 7);
+  if (!o.camera.empty()) {
+    cam = Numbers(o.camera, "--camera", 7);
+    if (cam[0] == cam[3] && cam[1] == cam[4] && cam[2] == cam[5])
+      throw UsageError("--camera", "the target coincides with the position: the camera looks nowhere");
+  }
 
   const scene::GltfScene model = scene::LoadGltfScene(o.model);
   const sphere::EquirectImage env = image::LoadImage(o.env, {.max_width = 8192, .require_equirect = true});
@@ -246,6 +250,12 @@ int RunRender(const RenderCliOptions& o) {
                      "ms: lighting {:.1f}, voxelize {:.1f}, G-buffer {:.1f}, shade {:.1f} ({}), composite {:.1f}\n",
                      lighting_ms, r.ms.voxelize, r.ms.gbuffer, r.ms.shade, o.device, r.ms.composite);
   }
+  // The picture is written, but a user who asked for a car and sees none deserves to hear why.
+  if (c.car_pixels == 0)
+    spdlog::warn(
+        "{}: the car ({}) covers no pixel of the view: it lies outside the camera's field "
+        "(see --camera and --model-matrix)",
+        o.out, o.model);
   return 0;
 }
 

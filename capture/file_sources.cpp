@@ -7,6 +7,7 @@
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 
+#include "capture/image_file.h"
 #include "capture/libav_video.h"
 #include "capture/source.h"
 #include "engine/core/error.h"
@@ -94,11 +95,12 @@ class ImageSequenceSource final : public Source {
         }
         continue;
       }
-      cv::Mat image = cv::imread(it->second.string(), cv::IMREAD_COLOR);
+      std::string problem;
+      cv::Mat image = ReadImageFile(it->second, cv::IMREAD_COLOR, &problem);
       if (image.empty()) {
         ++stats_.corrupt_frames;
         events_.push_back(
-            {SourceEvent::Kind::kCorruptFrame, static_cast<int>(c), index, it->second.string() + ": unreadable image"});
+            {SourceEvent::Kind::kCorruptFrame, static_cast<int>(c), index, it->second.string() + ": " + problem});
         continue;
       }
       if (sizes_[c].area() == 0) sizes_[c] = image.size();

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 
+#include "capture/image_file.h"
 #include "capture/live_source.h"
 #include "engine/core/error.h"
 
@@ -26,8 +27,9 @@ std::vector<ReplayCamera> OpenCameras(const std::vector<std::string>& dirs) {
     if (!fs::is_directory(dir)) throw Error(dir, "not a directory (replay needs one image folder per camera)");
     ReplayCamera cam{dir, ImageFiles(dir), {}};
     if (cam.files.empty()) throw Error(dir, "holds no images (.jpg, .png, .exr, ...)");
-    cam.first = cv::imread(cam.files.front().string(), cv::IMREAD_COLOR);
-    if (cam.first.empty()) throw Error(cam.files.front().string(), "unreadable image: the camera cannot start");
+    std::string problem;
+    cam.first = ReadImageFile(cam.files.front(), cv::IMREAD_COLOR, &problem);
+    if (cam.first.empty()) throw Error(cam.files.front().string(), problem + ": the camera cannot start");
     cameras.push_back(std::move(cam));
   }
   return cameras;
@@ -79,9 +81,11 @@ class ReplaySource final : public LiveSource {
       frame.camera = camera;
       frame.index = k;
       frame.timestamp_s = static_cast<double>(k) / fps_;
-      frame.image = i == 0 ? cam.first.clone() : cv::imread(cam.files[static_cast<std::size_t>(i)].string());
+      std::string problem;
+      frame.image = i == 0 ? cam.first.clone()
+                           : ReadImageFile(cam.files[static_cast<std::size_t>(i)], cv::IMREAD_COLOR, &problem);
       if (frame.image.empty()) {
-        Lose(camera, cam.files[static_cast<std::size_t>(i)].string() + ": unreadable image (the camera is gone)");
+        Lose(camera, cam.files[static_cast<std::size_t>(i)].string() + ": " + problem + " (the camera is gone)");
         return;
       }
       if (frame.image.size() != cam.first.size()) {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 
 #include "engine/core/atomic_file.h"
@@ -39,6 +40,21 @@ std::pair<long, long> SanitizePixels(sphere::EquirectImage* image) {
     negative += is_negative && !is_bad;
   }
   return {bad, negative};
+}
+
+// Some readers (libjpeg through OpenImageIO) decode a file that ends early without failing: they
+// fill the missing rows with grey and leave only a message behind. Grey moves the lighting's
+// constant term, so a file that ended early is refused; any other message the reader left (a
+// camera's stray bytes before a marker, harmless) is passed on as a warning naming the file.
+void CheckReaderMessages(OIIO::ImageInput* in, const std::string& name) {
+  std::string message = in->geterror();
+  if (message.empty()) return;
+  std::replace(message.begin(), message.end(), '\n', ' ');
+  std::string lower = message;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (lower.find("premature end") != std::string::npos || lower.find("truncated") != std::string::npos)
+    throw Error(name, "truncated: the file ends before its last row (" + message + ")");
+  spdlog::warn("{}: {}", name, message);
 }
 
 sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOptions& options, LoadReport* report) {
@@ -122,6 +138,7 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
       }
     }
   }
+  CheckReaderMessages(in.get(), name);
   in->close();
   const auto [bad, negative] = SanitizePixels(&out);
   r.nan_or_inf_pixels = bad;
@@ -146,6 +163,7 @@ std::vector<float> LoadAlpha(const std::filesystem::path& path, int* width, int*
   if (channel < 0) return alpha;
   if (!in->read_image(0, 0, channel, channel + 1, OIIO::TypeDesc::FLOAT, alpha.data()))
     throw Error(name, "corrupt or truncated alpha channel");
+  CheckReaderMessages(in.get(), name);
   for (float& a : alpha) a = std::isfinite(a) ? std::clamp(a, 0.f, 1.f) : 0.f;
   return alpha;
 }

@@ -29,6 +29,11 @@ namespace odvr::render {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// The largest model, in world metres, the renderer takes: the loader's bound on a vertex's distance
+// from the origin (GltfLoadOptions::max_coordinate_m), across.
+constexpr double kMaxModelExtentM = 2e5;
+
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // render_shade.comp's material-term types (brdf_lobes.glsl).
@@ -745,6 +750,14 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   }
   im.has_geometry = !im.triangles.empty();
   if (im.has_geometry) {
+    // The loader bounds the model in its own frame; a model matrix can still scale it past what a
+    // float voxel grid can hold. Say which model and how large, not "voxel size: inf".
+    const glm::dvec3 extent = glm::dvec3(im.bounds.max) - glm::dvec3(im.bounds.min);
+    const double largest = std::max({extent.x, extent.y, extent.z});
+    if (!std::isfinite(largest) || largest > kMaxModelExtentM)
+      throw Error(model.source.string(), "placed by its model matrix it spans " + std::to_string(largest) +
+                                             " m, more than the " + std::to_string(int(kMaxModelExtentM)) +
+                                             " m a car's voxel grid can hold");
     im.spec = visibility::VoxelGridSpec::Covering(glm::dvec3(im.bounds.min), glm::dvec3(im.bounds.max),
                                                   options_.voxel_resolution);
     im.voxelizer = std::make_unique<visibility::VoxelizerGpu>(im.spec);

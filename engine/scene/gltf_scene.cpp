@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <glm/geometric.hpp>
@@ -38,6 +39,7 @@ void GltfLoadOptions::Check() const {
   if (max_triangles == 0) throw Error("GltfLoadOptions::max_triangles", "must be positive");
   if (max_vertices == 0) throw Error("GltfLoadOptions::max_vertices", "must be positive");
   if (max_texture_side <= 0) throw Error("GltfLoadOptions::max_texture_side", "must be positive");
+  if (!(max_coordinate_m > 0)) throw Error("GltfLoadOptions::max_coordinate_m", "must be positive");
 }
 
 namespace {
@@ -312,6 +314,17 @@ std::vector<std::uint32_t> TriangulateIndices(int mode, const std::vector<std::u
   return out;
 }
 
+// A coordinate for a message: short, and exact enough to recognise (1e+38, 12.5).
+std::string Metres(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.4g", v);
+  return text;
+}
+
+std::string Count(std::size_t n, const std::string& noun) {
+  return std::to_string(n) + " " + noun + (n == 1 ? "" : noun.back() == 'h' ? "es" : "s");
+}
+
 class SceneBuilder {
  public:
   SceneBuilder(const tinygltf::Model& model, const std::string& file, const GltfLoadOptions& options,
@@ -338,8 +351,18 @@ class SceneBuilder {
     }
     std::vector<bool> on_path(model_.nodes.size(), false);
     for (int r : roots) Visit(r, glm::dmat4(1.0), &on_path);
-    for (const auto& p : scene_.primitives)
+    std::size_t triangles = 0;
+    for (const auto& p : scene_.primitives) {
+      triangles += p.indices.size() / 3;
       for (const auto& v : p.positions) scene_.bounds.Extend(v);
+    }
+    // A model that draws nothing renders a picture with no car and no error: refuse it instead.
+    if (triangles == 0)
+      reader_.Fail("holds no triangles to draw (the file has " + Count(model_.nodes.size(), "node") + " and " +
+                   Count(model_.meshes.size(), "mesh") + "; its scene draws none)");
+    const glm::vec3 extent = scene_.bounds.max - scene_.bounds.min;
+    if (!(std::max({extent.x, extent.y, extent.z}) > 1e-6f))
+      reader_.Fail("is a single point: its " + std::to_string(triangles) + " triangles have no extent");
     return std::move(scene_);
   }
 
@@ -437,7 +460,14 @@ class SceneBuilder {
     const glm::dmat3 linear(world);
     const double det = glm::determinant(linear);
     const glm::dmat3 normal_matrix = NormalMatrix(linear);
-    for (auto& p : out.positions) p = glm::vec3(world * glm::dvec4(p, 1.0));
+    for (std::size_t i = 0; i < out.positions.size(); ++i) {
+      const glm::dvec3 p(world * glm::dvec4(out.positions[i], 1.0));
+      if (!(glm::length(p) <= options_.max_coordinate_m))
+        reader_.Fail(what + " POSITION " + std::to_string(i) + " lies at (" + Metres(p.x) + ", " + Metres(p.y) + ", " +
+                     Metres(p.z) + ") m, beyond " + Metres(options_.max_coordinate_m) +
+                     " m of the origin: a corrupt coordinate, or a scale that is not metres");
+      out.positions[i] = glm::vec3(p);
+    }
     if (det < 0) {
       for (std::size_t t = 0; t + 2 < out.indices.size(); t += 3) std::swap(out.indices[t + 1], out.indices[t + 2]);
     }

@@ -33,6 +33,10 @@ struct GltfLoadOptions {
   std::size_t max_triangles = 20'000'000;
   std::size_t max_vertices = 30'000'000;
   int max_texture_side = 16384;  // pixels, per side
+  // A vertex farther than this from the origin, in world metres, is refused: glTF's unit is the
+  // metre, a car is a few metres across, and at 100 km a float's step is already 8 mm. One flipped
+  // exponent bit puts a vertex at 1e38 and shrinks the rest of the car to nothing beside it.
+  double max_coordinate_m = 1e5;
   // Throws odvr::Error naming the option when a limit is zero or negative.
   void Check() const;
 };

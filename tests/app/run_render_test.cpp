@@ -204,6 +204,24 @@ TEST(RunRender, SupersampleShadesFourSamplesPerPixelAndSoftensTheOutline) {
   EXPECT_GT(runs[2].partial, 20);
 }
 
+TEST(RunRender, ACarOutsideTheViewIsAWarningNamingIt) {
+  if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
+  ScratchDir d("run_render_away");
+  // The camera of kArgs turned round: the car is behind it.
+  const CliRun r =
+      RunOdvr("render --model " + kCar + " --env " + kPano +
+              " --camera -7,2.06,0.1,-20,0.7,0,43 --levels 2 --size 64x32 --out " + (d.dir / "away.png").string());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("0 car pixels"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("away.png: the car (" + kCar + ") covers no pixel of the view"), std::string::npos) << r.err;
+  // Scaled past what its voxel grid holds: an error naming the model, not "voxel size: inf".
+  const CliRun huge = RunOdvr("render " + kArgs + " --model-matrix 1e30,0,0,0,0,1,0,0,0,0,1,0 --size 64x32 --out " +
+                              (d.dir / "huge.png").string());
+  EXPECT_EQ(huge.exit_code, 1) << huge.err;
+  EXPECT_NE(huge.err.find(kCar + ": placed by its model matrix it spans"), std::string::npos) << huge.err;
+  EXPECT_FALSE(std::filesystem::exists(d.dir / "huge.png"));
+}
+
 TEST(RunRender, ClearErrors) {
   ScratchDir d("run_render_err");
   const std::string out = " --out " + (d.dir / "x.png").string();
@@ -223,6 +241,7 @@ TEST(RunRender, ClearErrors) {
       {"--model " + kCar + " --env " + kPano + " --voxels 100" + out, 2, "--voxels"},
       {"--model " + kCar + " --env " + kPano + " --supersample 5" + out, 2, "--supersample"},
       {"--model " + kCar + " --env " + kPano, 2, "--out"},
+      {"--model " + kCar + " --env " + kPano + " --camera 1,2,3,1,2,3,40" + out, 2, "--camera: the target coincides"},
   };
   for (const auto& c : cases) {
     const CliRun r = RunOdvr("render " + c.args);

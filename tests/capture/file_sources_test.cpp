@@ -110,6 +110,26 @@ TEST_F(FileSources, CorruptAndWrongSizedImagesAreSkippedWithAnEvent) {
   EXPECT_NE(events[1].message.find("differs"), std::string::npos) << events[1].message;
 }
 
+TEST_F(FileSources, ATruncatedJpegIsACorruptFrameNotGreyRows) {
+  WriteSequences(1, 3);
+  const fs::path frame = dir_ / "cam0" / "000001.jpg";
+  cv::Mat noise(24, 32, CV_8UC3);  // the camera's size: only the cut is wrong with it
+  cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));
+  cv::imwrite(frame.string(), noise);
+  fs::resize_file(frame, fs::file_size(frame) / 2);
+  auto source = OpenSource(dir_.string());
+  int sets = 0;
+  std::vector<SourceEvent> events;
+  while (auto set = source->Next()) {
+    EXPECT_EQ(set->frames[0].image.empty(), sets == 1) << "set " << sets;
+    for (auto& e : source->TakeEvents()) events.push_back(e);
+    ++sets;
+  }
+  EXPECT_EQ(sets, 3);
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_NE(events[0].message.find("000001.jpg: truncated JPEG"), std::string::npos) << events[0].message;
+}
+
 TEST_F(FileSources, ReadsVideoFilesFrameByFrameWithTimestamps) {
   const auto a = WriteVideo("a.avi", 10), b = WriteVideo("b.avi", 10);
   auto source = OpenSource(a.string() + "," + b.string());

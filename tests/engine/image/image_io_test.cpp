@@ -130,5 +130,22 @@ TEST_F(ImageIo, BadFilesAreOneLineErrorsNamingTheFile) {
   EXPECT_NE(ErrorOf(dir_ / "t.png").find("t.png"), std::string::npos);
 }
 
+TEST_F(ImageIo, ATruncatedJpegIsRefusedNotFilledWithGrey) {
+  // libjpeg decodes a JPEG that ends early "successfully", grey below the cut; only a message says so.
+  sphere::EquirectImage noise(256, 128);
+  unsigned state = 12345;
+  for (float& v : noise.rgb) {
+    state = state * 1103515245u + 12345u;
+    v = static_cast<float>((state >> 16) & 0xff) / 255.0f;
+  }
+  SaveImage(dir_ / "whole.jpg", noise);
+  EXPECT_EQ(ErrorOf(dir_ / "whole.jpg"), "");
+  fs::copy_file(dir_ / "whole.jpg", dir_ / "cut.jpg");
+  fs::resize_file(dir_ / "cut.jpg", fs::file_size(dir_ / "whole.jpg") / 2);
+  const std::string error = ErrorOf(dir_ / "cut.jpg");
+  EXPECT_NE(error.find("cut.jpg: truncated"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+}
+
 }  // namespace
 }  // namespace odvr::image

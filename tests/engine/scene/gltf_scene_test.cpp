@@ -448,6 +448,50 @@ TEST(GltfScene, NodeCycleIsAnError) {
   ExpectLoadError(dir / "cycle.gltf", "ancestor");
 }
 
+// Models that would render a picture with no car in it, each an error naming the file and why.
+TEST(GltfScene, AModelThatDrawsNothingIsAnError) {
+  const fs::path dir = TempDir("nothing");
+  json j = QuadGltf();
+  j["scenes"][0]["nodes"] = json::array();  // a scene of no nodes
+  WriteText(dir / "no_nodes.gltf", j.dump());
+  ExpectLoadError(dir / "no_nodes.gltf", "holds no triangles to draw");
+  j = QuadGltf();
+  j["nodes"][1].erase("mesh");  // nodes, but no mesh on any
+  WriteText(dir / "no_mesh.gltf", j.dump());
+  ExpectLoadError(dir / "no_mesh.gltf", "holds no triangles to draw");
+  j = QuadGltf();
+  j["accessors"][1]["count"] = 2;  // fewer indices than one triangle
+  WriteText(dir / "two_indices.gltf", j.dump());
+  ExpectLoadError(dir / "two_indices.gltf", "holds no triangles to draw");
+  j = QuadGltf();
+  j["nodes"][0]["scale"] = {0, 0, 0};  // every vertex on one point
+  WriteText(dir / "point.gltf", j.dump());
+  ExpectLoadError(dir / "point.gltf", "is a single point");
+}
+
+TEST(GltfScene, AVertexFarOffIsAnErrorNamingIt) {
+  // One flipped exponent bit: vertex 2's x becomes 1e38 (the fuzzer's mutant that showed no car).
+  json j = QuadGltf();
+  std::vector<float> pos = {0, 0, 0, 1, 0, 0, 1e38f, 1, 0, 0, 1, 0};
+  std::vector<std::uint16_t> idx = {0, 1, 2, 0, 2, 3};
+  std::vector<unsigned char> buf;
+  Append(&buf, pos);
+  Append(&buf, idx);
+  j["buffers"][0]["uri"] = "data:application/octet-stream;base64," + Base64(buf);
+  const fs::path dir = TempDir("far");
+  WriteText(dir / "far.gltf", j.dump());
+  ExpectLoadError(dir / "far.gltf", "POSITION 2 lies at (-2e+38, 1, 3) m, beyond 1e+05 m of the origin");
+  // A scale that is not metres (millimetres read as metres: 2 km across) passes the default and
+  // is refused by a tighter limit.
+  j = QuadGltf();
+  j["nodes"][0]["scale"] = {-2000, 1000, 1000};
+  WriteText(dir / "km.gltf", j.dump());
+  EXPECT_NO_THROW(LoadGltfScene(dir / "km.gltf"));
+  GltfLoadOptions o;
+  o.max_coordinate_m = 100;
+  ExpectLoadError(dir / "km.gltf", "beyond 100 m of the origin", o);
+}
+
 TEST(GltfScene, TriangleCapIsEnforced) {
   const fs::path src = kData / "gltf/ToyCar.glb";
   SKIP_IF_ABSENT(src);
@@ -473,6 +517,9 @@ TEST(GltfScene, ImageClaimingAbsurdSizeIsRefusedBeforeDecoding) {
 TEST(GltfScene, OptionsAreChecked) {
   GltfLoadOptions o;
   o.max_texture_side = 0;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.max_coordinate_m = std::nan("");
   EXPECT_THROW(o.Check(), Error);
 }
 

@@ -1,0 +1,36 @@
+#include "capture/image_file.h"
+
+#include <algorithm>
+#include <fstream>
+#include <iterator>
+#include <opencv2/imgcodecs.hpp>
+#include <vector>
+
+namespace odvr::capture {
+
+bool JpegEndsEarly(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.size() < 2 || bytes[0] != 0xFF || bytes[1] != 0xD8) return false;  // not a JPEG
+  // In entropy-coded data a 0xFF byte is always followed by 0x00 (stuffing) or a restart marker,
+  // so the marker bytes FF DA (start of scan) and FF D9 (end of image) only occur as markers. An
+  // EXIF thumbnail carries its own scan and end marker near the start; the main image's last scan
+  // is the last FF DA of the file, and a whole file has an FF D9 after it.
+  const unsigned char start_of_scan[] = {0xFF, 0xDA}, end_of_image[] = {0xFF, 0xD9};
+  const auto last_scan = std::find_end(bytes.begin(), bytes.end(), std::begin(start_of_scan), std::end(start_of_scan));
+  if (last_scan == bytes.end()) return true;  // headers only: no image data at all
+  return std::search(last_scan, bytes.end(), std::begin(end_of_image), std::end(end_of_image)) == bytes.end();
+}
+
+cv::Mat ReadImageFile(const std::filesystem::path& path, int flags, std::string* problem) {
+  cv::Mat image = cv::imread(path.string(), flags);
+  if (image.empty()) {
+    *problem = "unreadable image";
+  } else if (JpegEndsEarly(path)) {
+    *problem = "truncated JPEG: the file ends before its end-of-image marker";
+    image.release();
+  }
+  return image;
+}
+
+}  // namespace odvr::capture

@@ -1,0 +1,75 @@
+#include "capture/image_file.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+namespace odvr::capture {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ImageFile : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("odvr_image_file_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+cv::Mat Noise(int width, int height) {
+  cv::Mat image(height, width, CV_8UC3);
+  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
+  return image;
+}
+
+TEST_F(ImageFile, AJpegCutShortIsRefusedWhereOpenCvFillsItWithGrey) {
+  const fs::path whole = dir_ / "whole.jpg", cut = dir_ / "cut.jpg";
+  ASSERT_TRUE(cv::imwrite(whole.string(), Noise(320, 160)));
+  fs::copy_file(whole, cut);
+  fs::resize_file(cut, fs::file_size(whole) * 2 / 3);
+  // OpenCV itself decodes the cut file without complaint: the reason for this check.
+  EXPECT_FALSE(cv::imread(cut.string()).empty());
+
+  std::string problem;
+  EXPECT_FALSE(ReadImageFile(whole, cv::IMREAD_COLOR, &problem).empty()) << problem;
+  EXPECT_TRUE(ReadImageFile(cut, cv::IMREAD_COLOR, &problem).empty());
+  EXPECT_NE(problem.find("truncated JPEG"), std::string::npos) << problem;
+  EXPECT_FALSE(JpegEndsEarly(whole));
+  EXPECT_TRUE(JpegEndsEarly(cut));
+}
+
+TEST_F(ImageFile, ProgressiveJpegsAndOtherFormatsAreJudgedRight) {
+  const fs::path progressive = dir_ / "p.jpg", png = dir_ / "a.png";
+  ASSERT_TRUE(cv::imwrite(progressive.string(), Noise(320, 160), {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
+  ASSERT_TRUE(cv::imwrite(png.string(), Noise(64, 32)));
+  EXPECT_FALSE(JpegEndsEarly(progressive));
+  EXPECT_FALSE(JpegEndsEarly(png));
+  // Cut between two of the progressive scans: still short of the end-of-image marker.
+  fs::resize_file(progressive, fs::file_size(progressive) / 2);
+  EXPECT_TRUE(JpegEndsEarly(progressive));
+  std::ofstream(dir_ / "text.jpg") << "not a jpeg";
+  std::string problem;
+  EXPECT_TRUE(ReadImageFile(dir_ / "text.jpg", cv::IMREAD_COLOR, &problem).empty());
+  EXPECT_EQ(problem, "unreadable image");
+}
+
+TEST_F(ImageFile, ACameraJpegWithItsExifThumbnailIsWholeAndItsCutIsNot) {
+  // A GoPro still carries a thumbnail with its own scan and end marker near the file's start.
+  const fs::path camera = fs::path(ODVR_SHARED_DIR) / "data/rig_fusion/5_2k/directory/BK/GPBK7152_img1.jpg";
+  if (!fs::exists(camera)) GTEST_SKIP() << "needs ../shared/data/rig_fusion (absent in a user's clone)";
+  EXPECT_FALSE(JpegEndsEarly(camera));
+  const fs::path cut = dir_ / "cut.jpg";
+  fs::copy_file(camera, cut);
+  fs::resize_file(cut, fs::file_size(camera) / 2);
+  EXPECT_TRUE(JpegEndsEarly(cut));
+}
+
+}  // namespace
+}  // namespace odvr::capture
