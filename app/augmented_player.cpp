@@ -33,6 +33,7 @@ using Clock = std::chrono::steady_clock;
 AugmentedOptions SceneOptions(const PlayerOptions& o) {
   AugmentedOptions a;
   a.video = o.video;
+  a.stereo = o.stereo;
   a.trajectory = o.trajectory;
   a.car = o.car;
   a.car_start_m = o.car_start_m;

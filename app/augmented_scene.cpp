@@ -203,10 +203,7 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
     throw Error(options_.car, "car model not found (a glTF 2.0 .glb or .gltf is needed for --car)");
   im.model = scene::LoadGltfScene(options_.car);
   if (im.model.triangle_count() == 0) throw Error(options_.car, "the car model has no triangles");
-  im.decoder = std::make_unique<FrameDecoder>(capture::OpenSource(options_.video), 8);
-  if (im.decoder->camera_count() != 1)
-    throw Error(options_.video, "has " + std::to_string(im.decoder->camera_count()) +
-                                    " cameras: augmented playback needs equirectangular frames (odvr stitch)");
+  im.decoder = std::make_unique<FrameDecoder>(OpenPlayableVideo(options_.video, options_.stereo), 8);
   const auto poses = tracking::LoadTrajectory(options_.trajectory, im.decoder->fps());
   im.announced_frames = im.decoder->frame_count();
 

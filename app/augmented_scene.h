@@ -48,11 +48,12 @@ double DriveDuration(const std::vector<DriveStep>& script);
 
 // With composite_on_gpu, AugmentedFrame::image is left empty (the picture is in composite()).
 struct AugmentedOptions : CarRendering {
-  std::string video;        // equirect video or image sequence, frame i ↔ trajectory index i
-  std::string trajectory;   // trajectory.json (tracking::LoadTrajectoryJson's schema)
-  std::string car;          // glTF 2.0 model
-  double car_start_m = -1;  // arc length of the car along the camera path; < 0: view_distance_m
-  double lateral_m = 0;     // the car's offset left of the camera path at the start
+  std::string video;            // equirect video or image sequence, frame i ↔ trajectory index i
+  std::string stereo = "auto";  // OpenPlayableVideo's layout: auto, mono, top-bottom, side-by-side
+  std::string trajectory;       // trajectory.json (tracking::LoadTrajectoryJson's schema)
+  std::string car;              // glTF 2.0 model
+  double car_start_m = -1;      // arc length of the car along the camera path; < 0: view_distance_m
+  double lateral_m = 0;         // the car's offset left of the camera path at the start
   FramePickerOptions picker;
   double light_smoothing_s = 0.25;  // LightWeightSmoother's time constant
   double vfov_deg = 70;

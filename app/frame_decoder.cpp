@@ -2,9 +2,28 @@
 
 #include <spdlog/spdlog.h>
 
+#include "capture/equirect_view.h"
 #include "engine/core/error.h"
 
 namespace odvr::app {
+
+std::unique_ptr<capture::Source> OpenPlayableVideo(const std::string& video, const std::string& stereo) {
+  std::unique_ptr<capture::Source> source = capture::OpenSource(video);
+  if (source->camera_count() != 1)
+    throw Error(video, "has " + std::to_string(source->camera_count()) +
+                           " cameras: play an equirectangular video or stitch the rig first (odvr stitch)");
+  std::optional<capture::StereoLayout> layout;
+  if (stereo != "auto") layout = capture::ParseStereoLayout(stereo);
+  // The eye at its own width (no cap): the player shows what the file holds.
+  capture::EquirectClip clip =
+      capture::OpenEquirectClip(std::move(source), video, layout, 0, 1 << 20, /*step=*/1, /*first=*/0);
+  if (clip.layout != capture::StereoLayout::kMono || clip.eye_resampled)
+    spdlog::info("{}: {} (by {}): showing the {} eye, {}x{}{}", video,
+                 clip.layout == capture::StereoLayout::kMono ? "mono" : capture::ToString(clip.layout) + " stereo",
+                 clip.layout_from, clip.layout == capture::StereoLayout::kSideBySide ? "left" : "top", clip.width,
+                 clip.width / 2, clip.eye_resampled ? " (its rows resampled to 2:1, as its metadata asks)" : "");
+  return std::move(clip.source);
+}
 
 FrameDecoder::FrameDecoder(std::unique_ptr<capture::Source> source, std::size_t queue_capacity)
     : source_(std::move(source)), capacity_(std::max<std::size_t>(queue_capacity, 2)) {

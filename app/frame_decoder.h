@@ -9,11 +9,19 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <string>
 #include <thread>
 
 #include "capture/source.h"
 
 namespace odvr::app {
+
+// A 360° video or image sequence opened for playback as 2:1 equirect frames at its eye's width:
+// one eye of a stereo video, the layout `stereo` names ("mono", "top-bottom", "side-by-side"), or
+// for "auto" the one the file's metadata declares, else the one the frame's shape implies. Logs
+// the layout it found when it is not mono. Throws odvr::Error naming `video` for a rig recording
+// (several cameras), a file whose metadata names another projection, or an eye that is not 2:1.
+std::unique_ptr<capture::Source> OpenPlayableVideo(const std::string& video, const std::string& stereo);
 
 struct DecodedFrame {
   long index = 0;

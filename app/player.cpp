@@ -39,13 +39,10 @@ class Playback {
  public:
   explicit Playback(const PlayerOptions& options)
       : video_(options.video),
-        decoder_(capture::OpenSource(options.video)),
+        decoder_(OpenPlayableVideo(options.video, options.stereo)),
         clock_(static_cast<int>(decoder_.frame_count()), decoder_.fps()) {
     clock_.SetLoop(options.loop);
     view_.Set(options.view);
-    if (decoder_.camera_count() != 1)
-      throw Error(options.video, "has " + std::to_string(decoder_.camera_count()) +
-                                     " cameras: play an equirectangular video or stitch the rig first (odvr stitch)");
   }
 
   // Brings the clock's frame onto the GPU and draws it. A window waits briefly for the decoder

@@ -10,7 +10,8 @@
 namespace odvr::app {
 
 struct PlayerOptions {
-  std::string video;  // anything capture::OpenSource accepts (an equirect video, image sequence)
+  std::string video;            // anything capture::OpenSource accepts (an equirect video, image sequence)
+  std::string stereo = "auto";  // OpenPlayableVideo's layout: auto, mono, top-bottom, side-by-side
   int width = 1280, height = 720;
   bool headless = false;    // forced headless; also chosen when no display is available
   int headless_frames = 0;  // 0 = every frame of the video

@@ -105,6 +105,9 @@ CommandFn AddExport(CLI::App* sub) {
   auto c = std::make_shared<ExportCommand>();
   auto& s = c->scene;
   sub->add_option("--video", s.video, "Equirectangular video or image sequence")->required();
+  sub->add_option("--stereo", s.stereo, "A stereo 360° video uses one eye: auto, mono, top-bottom, side-by-side")
+      ->check(CLI::IsMember({"auto", "mono", "top-bottom", "side-by-side", "tb", "sbs"}))
+      ->capture_default_str();
   sub->add_option("--trajectory", s.trajectory, "Camera poses: odvr reconstruct's trajectory.json or trajectory.tum")
       ->required();
   sub->add_option("--car", s.car, "The car: glTF 2.0 (.glb/.gltf)")->required();

@@ -58,6 +58,7 @@ int RunPlay(PlayCommand& c) {
     // A clip and a car, no poses: reconstruct the clip as one 360° camera first (once: cached).
     ClipInput in;
     in.clip = c.options.video;
+    if (c.options.stereo != "auto") in.stereo = capture::ParseStereoLayout(c.options.stereo);
     in.camera_height_m = c.camera_height_m > 0 ? c.camera_height_m : kAssumedCameraHeightM;
     if (!(c.camera_height_m > 0))
       std::fprintf(stderr, "odvr play: no --camera-height: assuming the camera %.1f m above the road\n",
@@ -133,6 +134,11 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_flag("--headless", o.headless, "Render frames to PNG files instead of opening a window");
   sub->add_option("--frames", o.headless_frames, "Headless: how many frames (default: all)");
   sub->add_option("--out", o.out_dir, "Headless: output directory")->capture_default_str();
+  sub->add_option("--stereo", o.stereo,
+                  "A stereo 360° video shows one eye: auto (the file's metadata, else the frame's shape: 1:1 "
+                  "top-bottom, 4:1 side by side), mono, top-bottom, side-by-side")
+      ->check(CLI::IsMember({"auto", "mono", "top-bottom", "side-by-side", "tb", "sbs"}))
+      ->capture_default_str();
   sub->add_option("--exposure", o.exposure, "Exposure multiplier")->capture_default_str();
   sub->add_option("--yaw", o.view.yaw_deg, "Initial view yaw in degrees (positive: right)");
   sub->add_option("--pitch", o.view.pitch_deg, "Initial view pitch in degrees (positive: up)");

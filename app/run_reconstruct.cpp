@@ -153,7 +153,8 @@ CommandFn AddReconstruct(CLI::App* sub) {
                   "One camera: an equirect PNG, white where the image is not the world (car roof, operator, tripod)");
   sub->add_option("--nadir-cap", c->nadir_cap_deg, "One camera: degrees around straight down never tracked")
       ->capture_default_str();
-  sub->add_option("--stereo", c->stereo, "One camera: auto (by the frame's shape), mono, top-bottom, side-by-side")
+  sub->add_option("--stereo", c->stereo,
+                  "One camera: auto (the file's metadata, else the frame's shape), mono, top-bottom, side-by-side")
       ->capture_default_str();
   sub->add_option("--eye", c->eye, "One camera, stereo: 0 the top/left eye, 1 the other")->capture_default_str();
   sub->add_option("--track-width", c->track_width, "One camera: frames are scaled down to this width for tracking")

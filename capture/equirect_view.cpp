@@ -54,7 +54,7 @@ class EquirectViewSource final : public Source {
                          : options_.layout == StereoLayout::kSideBySide ? cv::Rect(options_.eye * w, 0, w, h)
                                                                         : cv::Rect(0, 0, w, h);
     cv::Mat view;
-    if (options_.width > 0 && options_.width != w)
+    if (options_.width > 0 && (options_.width != w || options_.width != 2 * h))
       cv::resize(image(eye), view, cv::Size(options_.width, options_.width / 2), 0, 0, cv::INTER_AREA);
     else
       view = eye.size() == image.size() ? image : image(eye).clone();
@@ -113,29 +113,42 @@ EquirectClip OpenEquirectClip(std::unique_ptr<Source> raw, const std::string& na
                               int eye, int max_width, long step, long first) {
   if (first > 0) raw->Seek(first);
   const auto set = raw->Next();
-  if (!set || set->frames.empty() || set->frames.front().image.empty()) throw Error(name, "no decodable first frame");
+  if (!set || set->frames.empty() || set->frames.front().image.empty())
+    throw Error(name, first > 0 ? "holds no decodable frame from frame " + std::to_string(first) + " on"
+                                : "holds no decodable frame");
   const cv::Mat& image = set->frames.front().image;
   // What the file says (Spherical Video V2's st3d/sv3d), unless the caller says otherwise.
   std::error_code ec;
+  bool declared_equirect = false;
+  EquirectClip clip;
+  clip.layout_from = stereo ? "the caller" : "the frame's shape";
   if (fs::is_regular_file(name, ec)) {
     const VideoProbe probe = ProbeVideo(name);
     if (!probe.projection.empty() && probe.projection != "equirectangular")
       throw Error(name, "is a " + probe.projection + " video by its metadata, not an equirectangular one");
-    if (!stereo) stereo = probe.stereo;
+    declared_equirect = probe.projection == "equirectangular";
+    if (!stereo && probe.stereo) {
+      stereo = probe.stereo;
+      clip.layout_from = "its metadata";
+    }
   }
   EquirectViewOptions view;
   view.layout = stereo ? *stereo : GuessStereoLayout(image.cols, image.rows);
   int w = 0, h = 0;
   EyeSize(view.layout, image.cols, image.rows, &w, &h);
-  if (w != 2 * h)
+  // An eye whose metadata says equirectangular spans 360° x 180° whatever its pixels' shape:
+  // stereo videos often halve each eye's rows (3840x2160 top-bottom: two 3840x1080 eyes), to be
+  // shown at 2:1. Resampled to 2:1 it is the equirect image every stage expects. Without that
+  // word from the file, a frame that is not 2:1 is most likely not a 360° frame at all.
+  if (w != 2 * h && !declared_equirect)
     throw Error(name, "a " + ToString(view.layout) + " frame of " + std::to_string(image.cols) + "x" +
                           std::to_string(image.rows) + " gives a " + std::to_string(w) + "x" + std::to_string(h) +
                           " eye, not an equirectangular 2:1 image");
+  clip.eye_resampled = w != 2 * h;
   view.eye = eye;
   view.width = std::min(max_width - max_width % 2, w - w % 2);
   view.step = step;
   raw->Seek(first);
-  EquirectClip clip;
   clip.layout = view.layout;
   clip.width = view.width;
   clip.source = OpenEquirectView(std::move(raw), view);

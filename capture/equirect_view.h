@@ -38,13 +38,15 @@ std::unique_ptr<Source> OpenEquirectView(std::unique_ptr<Source> source, const E
 struct EquirectClip {
   std::unique_ptr<Source> source;  // the eye, scaled, stepped, from the first frame asked for
   StereoLayout layout = StereoLayout::kMono;
-  int width = 0;  // of the frames delivered (height width / 2)
+  std::string layout_from;     // "its metadata", "the caller" or "the frame's shape"
+  bool eye_resampled = false;  // the eye was not 2:1 (its metadata says equirect): rows resampled
+  int width = 0;               // of the frames delivered (height width / 2)
 };
 // `raw` (one camera) from frame `first`: the layout `stereo` names, else the one the video file
 // `name` declares in its metadata, else the one the first frame's shape implies; the eye checked
-// to be a 2:1 image (a file whose metadata names another projection is refused); scaled to at
-// most `max_width`.
-// Throws odvr::Error naming `name` for a clip with no decodable first frame or an eye not 2:1.
+// to be a 2:1 image, or one the file's metadata declares equirectangular (resampled to 2:1; a
+// file whose metadata names another projection is refused); scaled to at most `max_width`.
+// Throws odvr::Error naming `name` for a clip with no decodable frame or an eye not 2:1.
 EquirectClip OpenEquirectClip(std::unique_ptr<Source> raw, const std::string& name, std::optional<StereoLayout> stereo,
                               int eye, int max_width, long step, long first);
 

@@ -203,6 +203,57 @@ TEST(RunPlayGL, AVideoWithNoDecodableFrameFailsAtOnce) {
   fs::remove_all(dir);
 }
 
+// A stereo 360° video shows one eye, not both stacked: here a top-bottom clip whose top eye is
+// red and bottom eye blue, told apart by its 1:1 shape (no metadata), then forced to "mono".
+TEST(RunPlayGL, AStereoVideoShowsOneEyeNotBothStacked) {
+  const fs::path dir = TempDir("odvr_play_stereo");
+  const fs::path clip = dir / "tb.mp4";
+  const std::string make =
+      "ffmpeg -v error -y -f lavfi -i color=red:s=64x32 -f lavfi -i color=blue:s=64x32 "
+      "-filter_complex vstack -frames:v 4 -c:v libx264 -pix_fmt yuv444p " +
+      clip.string();
+  ASSERT_EQ(std::system(make.c_str()), 0) << make;
+  const std::string common = "play --headless --frames 2 --size 64x36 --fov 150 --pitch -60 " + clip.string();
+  const auto r = RunOdvr(common + " --out " + (dir / "auto").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("tb.mp4: top-bottom stereo (by the frame's shape): showing the top eye, 64x32"),
+            std::string::npos)
+      << r.err;
+  // Looking 60° down with a 150° view sees from the nadir to above the horizon: stacked eyes
+  // would show blue below the horizon, one eye shows red throughout.
+  const cv::Mat frame = cv::imread((dir / "auto" / "frame_000001.png").string());
+  ASSERT_FALSE(frame.empty());
+  const cv::Scalar mean = cv::mean(frame);  // B, G, R
+  EXPECT_GT(mean[2], 150) << mean;
+  EXPECT_LT(mean[0], 60) << mean;
+
+  const auto mono = RunOdvr(common + " --stereo mono --out " + (dir / "mono").string());
+  EXPECT_EQ(mono.exit_code, 1) << mono.err;
+  EXPECT_NE(mono.err.find("a mono frame of 64x64 gives a 64x64 eye, not an equirectangular 2:1 image"),
+            std::string::npos)
+      << mono.err;
+  const auto bad = RunOdvr(common + " --stereo diagonal --out " + (dir / "bad").string());
+  EXPECT_EQ(bad.exit_code, 2) << bad.err;
+  EXPECT_NE(bad.err.find("--stereo"), std::string::npos) << bad.err;
+  fs::remove_all(dir);
+}
+
+// congo.mp4 says by its metadata that it is top-bottom stereo and equirectangular, each eye
+// 1920x540: the eye's rows are resampled to 2:1 and the picture shows one eye.
+TEST(RunPlayGL, AStereoVideoWithMetadataShowsItsTopEyeAt2To1) {
+  const fs::path congo = fs::path(ODVR_SHARED_DIR) / "data/video360/congo.mp4";
+  if (!fs::exists(congo)) GTEST_SKIP() << congo << " absent (../shared is not in a user's clone)";
+  const fs::path dir = TempDir("odvr_play_congo");
+  const auto r = RunOdvr("play --headless --frames 1 --size 96x54 --out " + dir.string() + " " + congo.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("congo.mp4: top-bottom stereo (by its metadata): showing the top eye, 1920x960 (its rows "
+                       "resampled to 2:1"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(cv::imread((dir / "frame_000000.png").string()).empty());
+  fs::remove_all(dir);
+}
+
 // A camera that never moves (every pose the demo's first, as a tripod reconstruction gives) put
 // the car over the camera; it stands on the road ahead of it, as on a moving trajectory.
 TEST(RunPlayGL, AStandingCameraGetsItsCarAheadNotOverIt) {
