@@ -80,6 +80,11 @@ using simd::Load4;
 using simd::Store4;
 using simd::V4;
 using I4 = int __attribute__((vector_size(16)));
+// Lanes i0..i3 of the eight of (a, b): __builtin_shufflevector, which GCC (12 on) and clang share.
+template <int i0, int i1, int i2, int i3>
+V4 Shuffle(V4 a, V4 b) {
+  return __builtin_shufflevector(a, b, i0, i1, i2, i3);
+}
 using D2 = double __attribute__((vector_size(16)));
 D2 Low2(V4 v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1), D2); }
 D2 High2(V4 v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 2, 3), D2); }
@@ -219,11 +224,11 @@ void AddRowSums(const float* sums, int stride, int width, float sign, const floa
   int col = 0;
   for (; col + 4 <= width; col += 4) {
     const V4 r = Load4(sr + col), g = Load4(sg + col), bl = Load4(sb + col);
-    const V4 rg_lo = __builtin_shuffle(r, g, I4{0, 4, 1, 5});                                             // r0 g0 r1 g1
-    const V4 rg_hi = __builtin_shuffle(r, g, I4{2, 6, 3, 7});                                             // r2 g2 r3 g3
-    const V4 a = __builtin_shuffle(rg_lo, bl, I4{0, 1, 4, 2});                                            // r0 g0 b0 r1
-    const V4 c = __builtin_shuffle(__builtin_shuffle(rg_lo, rg_hi, I4{3, 0, 4, 5}), bl, I4{0, 5, 2, 3});  // g1 b1 r2 g2
-    const V4 d = __builtin_shuffle(rg_hi, bl, I4{6, 2, 3, 7});                                            // b2 r3 g3 b3
+    const V4 rg_lo = Shuffle<0, 4, 1, 5>(r, g);                               // r0 g0 r1 g1
+    const V4 rg_hi = Shuffle<2, 6, 3, 7>(r, g);                               // r2 g2 r3 g3
+    const V4 a = Shuffle<0, 1, 4, 2>(rg_lo, bl);                              // r0 g0 b0 r1
+    const V4 c = Shuffle<0, 5, 2, 3>(Shuffle<3, 0, 4, 5>(rg_lo, rg_hi), bl);  // g1 b1 r2 g2
+    const V4 d = Shuffle<6, 2, 3, 7>(rg_hi, bl);                              // b2 r3 g3 b3
     const std::size_t i = 3 * static_cast<std::size_t>(col);
     Store4(o + i, Load4(b + i) + s4 * a);
     Store4(o + i + 4, Load4(b + i + 4) + s4 * c);

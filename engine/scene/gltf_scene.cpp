@@ -329,7 +329,7 @@ class SceneBuilder {
  public:
   SceneBuilder(const tinygltf::Model& model, const std::string& file, const GltfLoadOptions& options,
                const std::string& warnings)
-      : model_(model), file_(file), options_(options), reader_(model, file), warnings_(warnings) {}
+      : model_(model), options_(options), reader_(model, file), warnings_(warnings) {}
 
   GltfScene Build(const std::filesystem::path& path) {
     scene_.source = path;
@@ -655,7 +655,6 @@ class SceneBuilder {
   }
 
   const tinygltf::Model& model_;
-  const std::string& file_;
   const GltfLoadOptions& options_;
   Reader reader_;
   const std::string& warnings_;

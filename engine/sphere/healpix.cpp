@@ -59,7 +59,9 @@ std::array<int, 8> HealpixLevel::Neighbours(int i) const {
 const HealpixLevel& Healpix(int level) {
   static std::mutex mutex;
   static std::unique_ptr<HealpixLevel> levels[kMaxHealpixLevel + 1];
-  if (level < 0 || level > kMaxHealpixLevel) return *std::make_unique<HealpixLevel>(level);  // throws
+  if (level < 0 || level > kMaxHealpixLevel)
+    throw Error("healpix level",
+                "must be in 0.." + std::to_string(kMaxHealpixLevel) + ", got " + std::to_string(level));
   std::lock_guard lock(mutex);
   auto& slot = levels[level];
   if (!slot) slot = std::make_unique<HealpixLevel>(level);

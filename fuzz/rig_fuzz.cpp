@@ -1,0 +1,17 @@
+// Rig calibrations (rig.json): capture::LoadRig.
+#include "capture/rig.h"
+#include "engine/core/error.h"
+#include "fuzz/fuzz_input.h"
+
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  odvr::fuzz::QuietLogs();
+  return 0;
+}
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  try {
+    odvr::capture::LoadRig(odvr::fuzz::WriteInput(data, size, ".json"));
+  } catch (const odvr::Error&) {
+  }
+  return 0;
+}
