@@ -1,5 +1,6 @@
 // odvr export: an augmented clip — the car driven along a scripted path through the recorded
-// street, rendered frame by frame and written as a video (OpenCV's FFmpeg writer), atomically.
+// street, rendered frame by frame and written as a video (H.264, H.265 or MJPEG through libav),
+// atomically.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -8,11 +9,11 @@
 #include <fstream>
 #include <iostream>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 #include <sstream>
 
 #include "app/augmented_scene.h"
 #include "app/commands.h"
+#include "capture/libav_video_writer.h"
 #include "capture/source.h"
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
@@ -27,8 +28,10 @@ struct ExportCommand {
   std::string path = "W:3s";
   std::string out;
   std::string size = "1280x720";
-  int frames = -1;  // -1: the drive path's duration
-  double fps = -1;  // -1: the video's
+  int frames = -1;    // -1: the drive path's duration
+  double fps = -1;    // -1: the video's
+  std::string codec;  // capture::VideoWriterOptions::codec: "" by the extension
+  int crf = 20;
 };
 
 std::pair<int, int> ParseExportSize(const std::string& text) {
@@ -40,16 +43,13 @@ std::pair<int, int> ParseExportSize(const std::string& text) {
   return {a, b};
 }
 
-int FourccFor(const std::filesystem::path& out) {
-  const std::string ext = out.extension().string();
-  if (ext == ".mp4" || ext == ".mov" || ext == ".m4v") return cv::VideoWriter::fourcc('m', 'p', '4', 'v');
-  if (ext == ".avi" || ext == ".mkv") return cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
-  throw UsageError("--out", "'" + out.string() + "': the clip must be .mp4, .mov, .m4v, .avi or .mkv");
-}
-
 int RunExport(ExportCommand& c) {
   const auto [width, height] = ParseExportSize(c.size);
-  const int fourcc = FourccFor(c.out);
+  capture::VideoWriterOptions video;
+  video.width = width;
+  video.height = height;
+  video.codec = c.codec.empty() ? capture::DefaultCodecFor(c.out) : c.codec;
+  video.crf = c.crf;
   // --path is a drive script, or a file holding one.
   std::string script_text = c.path;
   if (std::filesystem::is_regular_file(c.path)) {
@@ -66,15 +66,18 @@ int RunExport(ExportCommand& c) {
   gl::HeadlessContext context;
   AugmentedScene scene(c.scene);
   const double fps = c.fps > 0 ? c.fps : (scene.fps() > 0 ? scene.fps() : 25.0);
+  video.fps = fps;
+  video.Check();
   const double dt = 1.0 / fps;
   const int frames =
       c.frames > 0 ? c.frames : std::max(1, static_cast<int>(std::ceil(DriveDuration(script) / dt - 1e-9)) + 1);
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   std::vector<std::uint8_t> bgr(static_cast<std::size_t>(width) * height * 3);
+  std::string encoder;
   WriteFileAtomically(c.out, [&](const std::filesystem::path& tmp) {
-    cv::VideoWriter writer(tmp.string(), cv::CAP_FFMPEG, fourcc, fps, cv::Size(width, height));
-    if (!writer.isOpened()) throw Error(c.out, "cannot open a video writer for it (OpenCV's FFmpeg backend)");
+    capture::LibavVideoWriter writer(tmp, video);
+    encoder = writer.codec_name();
     for (int i = 0; i < frames; ++i) {
       if (i > 0) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
       const AugmentedFrame f = scene.Render(width, height, {}, i > 0 ? dt : 0);
@@ -83,19 +86,19 @@ int RunExport(ExportCommand& c) {
           const float v = image::LinearToSrgb(std::clamp(f.image.rgb[3 * p + static_cast<std::size_t>(ch)], 0.f, 1.f));
           bgr[3 * p + static_cast<std::size_t>(2 - ch)] = static_cast<std::uint8_t>(std::lround(255 * v));
         }
-      writer.write(cv::Mat(height, width, CV_8UC3, bgr.data()));
+      writer.Write(cv::Mat(height, width, CV_8UC3, bgr.data()));
       const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
       const double eta = elapsed / (i + 1) * (frames - i - 1);
       std::fprintf(stderr, "\rexport: frame %d/%d (view %d)  %.2f s/frame  ETA %.0f s   ", i + 1, frames, f.view_frame,
                    elapsed / (i + 1), eta);
     }
     std::fprintf(stderr, "\n");
-    writer.release();
+    writer.Finish();
     capture::CheckWrittenVideo(tmp, c.out, frames);
   });
   const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
-  std::cout << c.out << ": " << frames << " frames " << width << "x" << height << " at " << fps << " fps in " << elapsed
-            << " s\n";
+  std::cout << c.out << ": " << frames << " frames " << width << "x" << height << " at " << fps << " fps (" << encoder
+            << ", crf " << c.crf << ") in " << elapsed << " s\n";
   return 0;
 }
 
@@ -114,7 +117,15 @@ CommandFn AddExport(CLI::App* sub) {
   sub->add_option("--path", c->path, "The drive: keys and durations, e.g. \"W:2s,A:1s\", or a file holding that")
       ->capture_default_str();
   sub->add_option("--car-start", s.car_start_m, "Car's start: arc length along the camera path in metres");
-  sub->add_option("--out", c->out, "The clip (.mp4, .mov, .m4v: MPEG-4 part 2; .avi, .mkv: MJPEG)")->required();
+  sub->add_option("--out", c->out,
+                  "The clip: .mp4, .mov, .m4v, .mkv (H.264 unless --codec says otherwise), .avi (MJPEG)")
+      ->required();
+  sub->add_option("--codec", c->codec, "h264, h265 or mjpeg (default: by the extension)")
+      ->check(CLI::IsMember({"h264", "h265", "mjpeg"}));
+  sub->add_option("--crf", c->crf,
+                  "Quality: x264/x265's constant rate factor, 0 (lossless) to 51; 18-23 look like the source")
+      ->check(CLI::Range(0, 51))
+      ->capture_default_str();
   sub->add_option("--size", c->size, "WIDTHxHEIGHT (even)")->capture_default_str();
   sub->add_option("--frames", c->frames, "Frames to write (default: the path's duration)");
   sub->add_option("--fps", c->fps, "Frame rate (default: the video's)");

@@ -10,10 +10,10 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <opencv2/videoio.hpp>
 #include <optional>
 
 #include "app/commands.h"
+#include "capture/libav_video_writer.h"
 #include "capture/rig.h"
 #include "capture/source.h"
 #include "capture/stitcher.h"
@@ -135,22 +135,23 @@ int RunStitch(const StitchCommand& c) {
   if (video) {
     if (fs::path(c.out).has_parent_path()) fs::create_directories(fs::path(c.out).parent_path());
     WriteFileAtomically(c.out, [&](const fs::path& tmp) {
-      cv::VideoWriter writer;
-      const double fps = source->fps() > 0 ? source->fps() : 25;
+      std::unique_ptr<capture::LibavVideoWriter> writer;
       loop([&](long, const capture::StitchedFrame& f) {
-        if (!writer.isOpened()) {
-          for (const char* fourcc : {"avc1", "mp4v"}) {
-            writer.open(tmp.string(), cv::CAP_FFMPEG,
-                        cv::VideoWriter::fourcc(fourcc[0], fourcc[1], fourcc[2], fourcc[3]), fps,
-                        cv::Size(f.image.width, f.image.height));
-            if (writer.isOpened()) break;
-          }
-          if (!writer.isOpened()) throw Error(c.out, "cannot open an MP4 writer (FFmpeg)");
+        if (!writer) {
+          // H.264 marked as a 360° equirectangular video (Spherical Video V2), as VLC and
+          // YouTube expect of a panorama.
+          capture::VideoWriterOptions o;
+          o.width = f.image.width;
+          o.height = f.image.height;
+          o.fps = source->fps() > 0 ? source->fps() : 25;
+          o.codec = "h264";
+          o.spherical_equirect = true;
+          writer = std::make_unique<capture::LibavVideoWriter>(tmp, o);
         }
-        writer.write(ToBgr8(f.image));
+        writer->Write(ToBgr8(f.image));
       });
-      if (!writer.isOpened()) throw Error(c.in.empty() ? c.rig : c.in, "delivered no frames to stitch");
-      writer.release();
+      if (!writer) throw Error(c.in.empty() ? c.rig : c.in, "delivered no frames to stitch");
+      writer->Finish();
       capture::CheckWrittenVideo(tmp, c.out, static_cast<long>(ms.size()));
     });
   } else {

@@ -50,12 +50,6 @@ void LogToSpdlog(void* context, int level, const char* format, va_list args) {
   pending.clear();
 }
 
-// The callback is process-wide (OpenCV's FFmpeg backend shares the same libav): set it once.
-void RouteLibavLog() {
-  static std::once_flag once;
-  std::call_once(once, [] { av_log_set_callback(LogToSpdlog); });
-}
-
 struct FormatCloser {
   void operator()(AVFormatContext* f) const { avformat_close_input(&f); }
 };
@@ -185,6 +179,12 @@ constexpr long kUnknownIndex = LONG_MIN;
 constexpr int kMaxConsecutiveErrors = 256;
 
 }  // namespace
+
+// The callback is process-wide (OpenCV's FFmpeg backend shares the same libav): set it once.
+void RouteLibavLog() {
+  static std::once_flag once;
+  std::call_once(once, [] { av_log_set_callback(LogToSpdlog); });
+}
 
 VideoProbe ProbeVideo(const std::string& path) { return Describe(OpenInput(path)); }
 

@@ -33,6 +33,9 @@ struct VideoProbe {
   double yaw_deg = 0, pitch_deg = 0, roll_deg = 0;
 };
 
+// Sends libav's own log (process-wide) to spdlog: warnings and errors, one line each. Idempotent.
+void RouteLibavLog();
+
 // Throws odvr::Error naming `path` when it is missing, not a video libav can read, or has no
 // video stream.
 VideoProbe ProbeVideo(const std::string& path);

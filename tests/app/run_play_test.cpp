@@ -159,6 +159,16 @@ TEST(RunPlayGL, ExportWritesAClipAtomically) {
     ++frames;
   }
   EXPECT_EQ(frames, 6);
+  // H.264 by default for .mp4 (it was MPEG-4 Part 2), which every player and site takes.
+  EXPECT_NE(r.out.find("(libx264, crf 20)"), std::string::npos) << r.out;
+  const std::string probe = "ffprobe -v error -select_streams v:0 -show_entries stream=codec_name -of csv=p=0 " +
+                            out.string() + " > " + (dir / "codec.txt").string();
+  ASSERT_EQ(std::system(probe.c_str()), 0);
+  std::ifstream codec(dir / "codec.txt");
+  std::string name;
+  codec >> name;
+  EXPECT_EQ(name, "h264");
+  fs::remove(dir / "codec.txt");
   int files = 0;
   for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
   EXPECT_EQ(files, 1) << "a temporary was left beside the clip";
