@@ -67,6 +67,7 @@ AugmentedFrameRecord Record(const AugmentedFrame& f) {
   r.car_px = f.car_in_front ? f.car_pixel.x : -1;
   r.car_py = f.car_in_front ? f.car_pixel.y : -1;
   r.car_pixels = f.car_pixels;
+  r.at_stretch_end = f.at_stretch_end;
   return r;
 }
 
@@ -163,8 +164,10 @@ PlayerReport RunAugmentedHeadless(const PlayerOptions& o) {
   std::vector<FrameTimings> all;
   const AugmentedView view{o.view.yaw_deg, o.view.pitch_deg, 0, true};
   for (int i = 0; i < frames; ++i) {
-    // Frame i shows the car after i steps of the script.
-    if (i > 0) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
+    // Frame i shows the car after i steps of the script; without one the video plays and the
+    // car cruises ahead of the camera.
+    if (i > 0 && script.empty()) scene.Cruise(dt);
+    if (i > 0 && !script.empty()) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
     const AugmentedFrame f = scene.Render(o.width, o.height, view, i > 0 ? dt : 0);
     char name[32];
     std::snprintf(name, sizeof name, "frame_%06d.png", i);
@@ -205,6 +208,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
   const auto start = Clock::now();
   auto previous = start;
   double drive_t = 0;  // the script's clock: it stops while paused
+  bool cruising = script.empty();
   AugmentedFrame frame;
   std::vector<std::string> overlay;
   std::map<std::string, std::array<int, 2>> panel_widgets;
@@ -241,7 +245,13 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
     car_input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
     car_input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
     car_input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
-    scene.Drive(car_input, dt);
+    // Without a script the video plays and the car cruises ahead of the camera until a key
+    // takes the wheel.
+    if (car_input.forward || car_input.backward || car_input.left || car_input.right) cruising = false;
+    if (cruising)
+      scene.Cruise(dt);
+    else
+      scene.Drive(car_input, dt);
 
     if (fb_w > 0 && fb_h > 0) {
       // The renderer's smallest useful picture; a tiny window shows it scaled down.
@@ -252,14 +262,15 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
       report.frames.push_back(Record(frame));
       presenter.Show(scene.composite(), static_cast<float>(o.exposure), fb_w, fb_h);
 
-      overlay = {Printf("frame %d (light %d)   car %.1f km/h%s", frame.view_frame, frame.light_frame,
-                        scene.car().state().speed_mps * 3.6, paused ? "  (paused)" : ""),
+      overlay = {Printf("frame %d (light %d)   car %.1f km/h%s%s", frame.view_frame, frame.light_frame,
+                        scene.car_speed_mps() * 3.6, cruising ? "  cruising" : "", paused ? "  (paused)" : ""),
                  Printf("decode %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.decode,
                         frame.ms.lighting, frame.ms.render, frame.ms.composite),
                  Printf("total %.1f ms (%.1f fps)  yaw %.0f pitch %.0f fov %.0f", frame.ms.total,
                         frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0, look.state().yaw_deg, look.state().pitch_deg,
                         look.state().fov_deg),
                  "WASD drive, drag look, wheel zoom, space pause, C car, F1 panel, F12 shot"};
+      if (frame.at_stretch_end) overlay.push_back("the end of the reconstructed street: no frame shows beyond it");
       imgui.NewFrame();
       if (show_overlay) {
         ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
@@ -306,6 +317,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
           {"car_speed_mps", car.speed_mps},
           {"car_pixel", {frame.car_in_front ? frame.car_pixel.x : -1, frame.car_in_front ? frame.car_pixel.y : -1}},
           {"car_pixels", frame.car_pixels},
+          {"at_stretch_end", frame.at_stretch_end},
           {"overlay_shown", show_overlay},
           {"overlay", overlay},
           {"look",

@@ -149,6 +149,11 @@ struct AugmentedScene::Impl {
   LightWeightSmoother smoother;
 
   int gpu_frame = -1;  // which view frame the renderer's background holds (the last shown)
+  // Cruise: the video's clock (seconds from the trajectory's first frame), the car's lead over
+  // the camera along the path, the speed of the last step; driving: held at the street's end.
+  double cruise_t = 0, cruise_lead_m = 0, cruise_speed_mps = 0;
+  int cruise_view_k = 0;  // the trajectory frame nearest the video's clock
+  bool cruising = false, at_stretch_end = false;
   sphere::EquirectImage last_background;
 
   // Linear float RGB of an 8-bit sRGB image.
@@ -246,6 +251,28 @@ long AugmentedScene::video_frames() const { return impl_->decoder->available_fra
 
 namespace {
 constexpr double kStandingPathM = 0.5, kStandingAheadM = 4.0;
+// How far the driven car may go past the first or last camera, or to the side of the path,
+// before it is held: a car's length beyond the ends, a wide street's half width to the side.
+constexpr double kStretchEndMarginM = 5.0, kStretchSideMarginM = 15.0;
+}  // namespace
+
+namespace {
+
+// The point at arc length s_m (clamped) of the polyline `p`, and the direction of its segment.
+glm::dvec3 PathPoint(const std::vector<glm::dvec3>& p, double s_m, glm::dvec3* dir) {
+  glm::dvec3 pos = p[0];
+  *dir = {1, 0, 0};
+  double s = 0;
+  for (std::size_t i = 0; i + 1 < p.size(); ++i) {
+    const double len = glm::distance(p[i], p[i + 1]);
+    if (len <= 0) continue;
+    *dir = (p[i + 1] - p[i]) / len;
+    if (s + len >= s_m || i + 2 == p.size()) return p[i] + std::clamp(s_m - s, 0.0, len) * *dir;
+    s += len;
+  }
+  return pos;
+}
+
 }  // namespace
 
 void AugmentedScene::PlaceCar(double s_m, double lateral_m) {
@@ -258,18 +285,7 @@ void AugmentedScene::PlaceCar(double s_m, double lateral_m) {
     dir.y = 0;
     if (glm::length(dir) > 1e-9) pos = p[0] + std::max(s_m, kStandingAheadM) * glm::normalize(dir);
   } else {
-    s_m = std::clamp(s_m, 0.0, picker_->path_length());
-    double s = 0;
-    for (std::size_t i = 0; i + 1 < p.size(); ++i) {
-      const double len = glm::distance(p[i], p[i + 1]);
-      if (len <= 0) continue;
-      dir = (p[i + 1] - p[i]) / len;
-      if (s + len >= s_m || i + 2 == p.size()) {
-        pos = p[i] + std::min(s_m - s, len) * dir;
-        break;
-      }
-      s += len;
-    }
+    pos = PathPoint(p, std::clamp(s_m, 0.0, picker_->path_length()), &dir);
   }
   dir.y = 0;
   if (glm::length(dir) < 1e-9) dir = {1, 0, 0};
@@ -294,12 +310,71 @@ void AugmentedScene::TeleportCar(const glm::dvec3& world_position) {
 }
 
 void AugmentedScene::Drive(const CarInput& input, double dt_s) {
+  Impl& im = *impl_;
+  im.cruising = false;
   // Steps of at most 20 ms: the controller clamps longer steps, which would slow a scripted drive.
   while (dt_s > 0) {
     const double dt = std::min(dt_s, 0.02);
+    const CarState before = car_->state();
     car_->Step(input, dt);
     dt_s -= dt;
+    // Beyond the recorded street there is no frame to show the car in (it shrank to a few pixels
+    // as the view stayed at the last frame): the car is held where it was, stopped.
+    const auto& p = im.positions;
+    if (p.size() < 2 || picker_->path_length() < kStandingPathM) continue;
+    const glm::dvec3 at = car_->state().position;
+    glm::dvec3 dir;
+    const double s = picker_->ArcLengthOf(at);
+    const glm::dvec3 nearest = PathPoint(p, s, &dir);
+    const double off = glm::length(glm::dvec3(at.x - nearest.x, 0, at.z - nearest.z));
+    const bool beyond_an_end = (s <= 0 || s >= picker_->path_length()) && off > kStretchEndMarginM;
+    if (beyond_an_end || off > kStretchSideMarginM) {
+      car_->Reset(before.position, before.forward);
+      car_->Stop();
+      im.at_stretch_end = true;
+    } else {
+      im.at_stretch_end = false;
+    }
   }
+}
+
+void AugmentedScene::Cruise(double dt_s) {
+  Impl& im = *impl_;
+  const double fps = this->fps() > 0 ? this->fps() : 25.0;
+  const int n = std::min(picker_->frame_count(), static_cast<int>(frame_index_.size()));
+  if (!im.cruising) {  // (re)start from where the car stands: its lead over the camera's frame
+    const double s_car = picker_->ArcLengthOf(car_->state().position);
+    const int view = std::clamp(picker_->ViewFrame(car_->state().position), 0, n - 1);
+    im.cruise_lead_m = std::max(0.0, s_car - picker_->ArcLengthAt(view));
+    im.cruise_t = (frame_index_[static_cast<std::size_t>(view)] - frame_index_.front()) / fps;
+    im.cruising = true;
+  }
+  const double duration = (frame_index_[static_cast<std::size_t>(n - 1)] - frame_index_.front() + 1) / fps;
+  im.cruise_t = std::fmod(im.cruise_t + dt_s, duration);
+  // The camera's arc length at video frame v, linear between the trajectory's frames.
+  const double v = frame_index_.front() + im.cruise_t * fps + 1e-6;  // frame k at k/fps, not just before
+  int k = 0;
+  while (k + 1 < n && frame_index_[static_cast<std::size_t>(k + 1)] <= v) ++k;
+  double s_camera = picker_->ArcLengthAt(k);
+  im.cruise_view_k = k;
+  if (k + 1 < n) {
+    const double a =
+        std::clamp((v - frame_index_[static_cast<std::size_t>(k)]) /
+                       (frame_index_[static_cast<std::size_t>(k + 1)] - frame_index_[static_cast<std::size_t>(k)]),
+                   0.0, 1.0);
+    s_camera += a * (picker_->ArcLengthAt(k + 1) - picker_->ArcLengthAt(k));
+    if (a > 0.5) im.cruise_view_k = k + 1;
+  }
+  const double s_before = picker_->ArcLengthOf(car_->state().position);
+  PlaceCar(s_camera + im.cruise_lead_m, options_.lateral_m);
+  // Its lead takes the car to the street's end before the camera: it waits there for the loop.
+  im.at_stretch_end = picker_->path_length() >= kStandingPathM && s_camera + im.cruise_lead_m > picker_->path_length();
+  const double s_after = picker_->ArcLengthOf(car_->state().position);
+  im.cruise_speed_mps = dt_s > 0 && s_after >= s_before ? (s_after - s_before) / dt_s : im.cruise_speed_mps;
+}
+
+double AugmentedScene::car_speed_mps() const {
+  return impl_->cruising ? impl_->cruise_speed_mps : car_->state().speed_mps;
 }
 
 const lighting::SgLighting& AugmentedScene::FrameLighting(int frame) {
@@ -352,7 +427,9 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
 
   // Which frames: the viewer's and the car's light.
   const glm::dvec3 car_at_rig_height = car.position + glm::dvec3(0, im.rig_height, 0);
-  int view_k = picker_->ViewFrame(car_at_rig_height);
+  // Cruising, the viewer sees the video's own frame (the car may already wait at the street's end).
+  int view_k =
+      im.cruising ? std::min(im.cruise_view_k, picker_->frame_count() - 1) : picker_->ViewFrame(car_at_rig_height);
   const int light_k = picker_->NearestFrame(car_at_rig_height);
   const auto target = picker_->LightWeights(car_at_rig_height);
 
@@ -493,6 +570,7 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
   composite_ms += r.ms.composite;
   out.image = std::move(r.composite);
   out.car_pixels = r.counts.car_pixels;
+  out.at_stretch_end = im.at_stretch_end;
   t0 = Clock::now();
   if (options_.exposure != 1.0)
     for (float& v : out.image.rgb) v *= static_cast<float>(options_.exposure);

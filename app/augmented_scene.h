@@ -75,6 +75,9 @@ struct AugmentedFrame {
   glm::dvec2 car_pixel{-1};    // projection of the car's centre (bounding-box middle)
   bool car_in_front = false;
   int car_pixels = 0;
+  // The driven car was held at an end of the reconstructed street (or too far off it): beyond,
+  // there is no recorded frame to show it in.
+  bool at_stretch_end = false;
   AugmentedTimings ms;
   // How well the light frame's model holds its panorama: the residual transform's levels (kept
   // SRBFs, the residue left after each) and the peaks taken out first.
@@ -98,7 +101,14 @@ class AugmentedScene {
   AugmentedScene(const AugmentedScene&) = delete;
   AugmentedScene& operator=(const AugmentedScene&) = delete;
 
+  // The car driven by keys; it is held on the reconstructed street (AugmentedFrame::at_stretch_end).
   void Drive(const CarInput& input, double dt_s);
+  // Playback without keys: the video plays at its rate and the car rides ahead of the camera by
+  // the distance it started at, at the camera's speed, so that the viewer sees frame t·fps; the
+  // video loops at the end of the trajectory.
+  void Cruise(double dt_s);
+  // The car's speed: the camera's while cruising, the controller's while driven.
+  double car_speed_mps() const;
   // Puts the car at arc length s of the camera path (clamped), `lateral_m` to its left.
   void PlaceCar(double s_m, double lateral_m = 0);
   // Moves the car to a world position (projected on the road), keeping its heading.

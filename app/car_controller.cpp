@@ -25,6 +25,11 @@ CarController::CarController(GroundPlane plane, CarLimits limits) : plane_(plane
   Reset({0, plane_.offset, 0}, {1, 0, 0});
 }
 
+void CarController::Stop() {
+  state_.speed_mps = 0;
+  state_.steer_rad = 0;
+}
+
 void CarController::Reset(const glm::dvec3& position, const glm::dvec3& forward) {
   state_ = {};
   state_.position = position - (glm::dot(plane_.normal, position) - plane_.offset) * plane_.normal;

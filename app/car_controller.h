@@ -42,6 +42,8 @@ class CarController {
   // Places the car on the plane at (the projection of) `position`, heading along `forward`.
   void Reset(const glm::dvec3& position, const glm::dvec3& forward);
   void Step(const CarInput& input, double dt_s);
+  // Stands the car still where it is (speed and steering to 0), keeping its heading.
+  void Stop();
   const CarState& state() const { return state_; }
   // Car frame: +X forward, +Y up (the plane normal), +Z right, as the glTF car is modelled.
   glm::dmat4 WorldFromCar() const;

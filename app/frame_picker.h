@@ -32,6 +32,8 @@ class FramePicker {
   // The frame whose camera is view_distance_m behind the car along the path (clamped to the ends).
   int ViewFrame(const glm::dvec3& car) const;
   double path_length() const { return arc_.empty() ? 0 : arc_.back(); }
+  // Arc length of frame k's camera along the path (frame order, from 0).
+  double ArcLengthAt(int k) const { return arc_[static_cast<std::size_t>(k)]; }
 
  private:
   std::vector<glm::dvec3> positions_;

@@ -50,7 +50,8 @@ struct AugmentedFrameRecord {
   double car_x = 0, car_z = 0;      // world (Y up)
   double car_px = -1, car_py = -1;  // projection of the car's centre
   int car_pixels = 0;
-  std::string file;  // headless PNG
+  bool at_stretch_end = false;  // AugmentedFrame::at_stretch_end
+  std::string file;             // headless PNG
 };
 
 struct PlayerReport {

@@ -25,7 +25,7 @@ namespace {
 
 struct ExportCommand {
   AugmentedOptions scene;
-  std::string path = "W:3s";
+  std::string path;  // the drive script; empty: the car cruises ahead of the camera
   std::string out;
   std::string size = "1280x720";
   int frames = -1;    // -1: the drive path's duration
@@ -52,14 +52,14 @@ int RunExport(ExportCommand& c) {
   video.crf = c.crf;
   // --path is a drive script, or a file holding one.
   std::string script_text = c.path;
-  if (std::filesystem::is_regular_file(c.path)) {
+  if (!c.path.empty() && std::filesystem::is_regular_file(c.path)) {
     std::ifstream in(c.path);
     std::stringstream ss;
     ss << in.rdbuf();
     script_text = ss.str();
     script_text.erase(std::remove_if(script_text.begin(), script_text.end(), ::isspace), script_text.end());
   }
-  const auto script = ParseDriveScript(script_text);
+  const auto script = script_text.empty() ? std::vector<DriveStep>{} : ParseDriveScript(script_text);
   if (c.frames == 0 || c.frames < -1) throw UsageError("--frames", "must be at least 1");
   if (c.fps != -1 && !(c.fps > 0 && c.fps <= 1000)) throw UsageError("--fps", "must be in (0, 1000]");
 
@@ -69,8 +69,10 @@ int RunExport(ExportCommand& c) {
   video.fps = fps;
   video.Check();
   const double dt = 1.0 / fps;
-  const int frames =
-      c.frames > 0 ? c.frames : std::max(1, static_cast<int>(std::ceil(DriveDuration(script) / dt - 1e-9)) + 1);
+  // By default the drive's duration, or without one the trajectory's stretch of the video.
+  const int frames = c.frames > 0     ? c.frames
+                     : script.empty() ? static_cast<int>(scene.frames().back() - scene.frames().front() + 1)
+                                      : std::max(1, static_cast<int>(std::ceil(DriveDuration(script) / dt - 1e-9)) + 1);
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   std::vector<std::uint8_t> bgr(static_cast<std::size_t>(width) * height * 3);
@@ -79,7 +81,8 @@ int RunExport(ExportCommand& c) {
     capture::LibavVideoWriter writer(tmp, video);
     encoder = writer.codec_name();
     for (int i = 0; i < frames; ++i) {
-      if (i > 0) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
+      if (i > 0 && script.empty()) scene.Cruise(dt);
+      if (i > 0 && !script.empty()) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
       const AugmentedFrame f = scene.Render(width, height, {}, i > 0 ? dt : 0);
       for (std::size_t p = 0; p < f.image.pixel_count(); ++p)
         for (int ch = 0; ch < 3; ++ch) {
@@ -114,8 +117,9 @@ CommandFn AddExport(CLI::App* sub) {
   sub->add_option("--trajectory", s.trajectory, "Camera poses: odvr reconstruct's trajectory.json or trajectory.tum")
       ->required();
   sub->add_option("--car", s.car, "The car: glTF 2.0 (.glb/.gltf)")->required();
-  sub->add_option("--path", c->path, "The drive: keys and durations, e.g. \"W:2s,A:1s\", or a file holding that")
-      ->capture_default_str();
+  sub->add_option("--path", c->path,
+                  "The drive: keys and durations, e.g. \"W:2s,A:1s\", or a file holding that (default: the car "
+                  "cruises ahead of the camera through the whole trajectory)");
   sub->add_option("--car-start", s.car_start_m, "Car's start: arc length along the camera path in metres");
   sub->add_option("--out", c->out,
                   "The clip: .mp4, .mov, .m4v, .mkv (H.264 unless --codec says otherwise), .avi (MJPEG)")

@@ -48,10 +48,7 @@ int RunPlay(PlayCommand& c) {
     const auto demo = std::filesystem::path(c.options.video).parent_path();
     if (!c.no_car && c.options.trajectory.empty()) c.options.trajectory = (demo / "trajectory_gt.json").string();
     if (!c.no_car && c.options.car.empty()) c.options.car = (demo / "car.glb").string();
-    // Headless, nobody holds the keys: drive the car forward for a second so the frames show the
-    // view and the light following it along the street.
-    const bool headless = c.options.headless || !DisplayAvailable();
-    if (!c.no_car && headless && c.options.drive.empty()) c.options.drive = "W:1s,-:1s";
+    // Headless, nobody holds the keys: the car cruises ahead of the camera as the video plays.
   }
   std::string reconstruction;  // the cached reconstruction the trajectory came from, if any
   if (!c.options.car.empty() && c.options.trajectory.empty()) {
@@ -104,6 +101,7 @@ int RunPlay(PlayCommand& c) {
                         {"car_world_xz", {f.car_x, f.car_z}},
                         {"car_pixel", {f.car_px, f.car_py}},
                         {"car_pixels", f.car_pixels},
+                        {"at_stretch_end", f.at_stretch_end},
                         {"file", f.file}});
     j["frames"] = frames;
     std::cout << j.dump(2) << "\n";
@@ -156,7 +154,9 @@ CommandFn AddPlay(CLI::App* sub) {
   sub->add_option("--car-start", o.car_start_m, "Car's start: arc length along the camera path in metres");
   sub->add_option("--view-distance", o.view_distance_m, "The viewer's frame trails the car by this many metres")
       ->capture_default_str();
-  sub->add_option("--drive", o.drive, "Scripted keys, e.g. \"W:2s,A:1s,-:0.5s\" (W/A/S/D, - none)");
+  sub->add_option("--drive", o.drive,
+                  "Scripted keys, e.g. \"W:2s,A:1s,-:0.5s\" (W/A/S/D, - none); without it the car cruises ahead "
+                  "of the camera as the video plays, until a key takes the wheel");
   sub->add_option("--levels", o.lighting_levels, "Car light: HEALPix levels (1..6)")->capture_default_str();
   sub->add_option("--voxels", o.voxels, "Car visibility grid per side (64, 128, 256)")->capture_default_str();
   sub->add_option("--supersample", o.supersample,

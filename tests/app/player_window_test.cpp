@@ -257,7 +257,8 @@ TEST(PlayerWindowGL, CarAppearsAtItsProjectionAndDrivesWithW) {
   if (const std::string tool = MissingTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
   ScratchDir scratch("odvr_player_window_car");
   // Looking 15° right of the car, so that it stands left of the middle.
-  ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15");
+  // A script of no keys: the car stands until W is pressed, instead of cruising with the video.
+  ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15 --drive -:0.01s");
   window.Shot("mousemove --window $W 470 260 key F1");  // 1: overlay off, the car at rest
   window.Shot("key space c");                           // 2: paused, the car hidden
   window.Shot("key c space keydown w");                 // 3: driving
@@ -316,7 +317,7 @@ std::string PanelWidget(const std::string& name) {
 TEST(PlayerWindowGL, ClickOnThePanelsLevelCheckboxChangesTheCar) {
   if (const std::string tool = MissingTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
   ScratchDir scratch("odvr_player_window_panel");
-  ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15 --panel");
+  ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15 --panel --drive -:0.01s");
   window.Shot("mousemove --window $W 5 265 key space F1");  // 1: paused, nothing over the picture
   // ImGui toggles a checkbox on the frame that sees the release, and the scene renders the new
   // look on the frame after: a screenshot in between.

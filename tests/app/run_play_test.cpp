@@ -94,6 +94,43 @@ TEST(RunPlayGL, HeadlessDemoWithTheCarAndAScriptedDrive) {
   fs::remove_all(dir);
 }
 
+// Nobody holds a key: the video plays and the car rides ahead of the camera (it stood on frame 0
+// until W was pressed); held W stops the car at the end of the reconstructed street (it drove on
+// to 165 m on a 35 m trajectory, 8 px tall).
+TEST(RunPlayGL, TheDemoPlaysWithNoKeyAndTheCarStaysOnTheStreet) {
+  const fs::path dir = TempDir("odvr_play_cruise");
+  const auto r = RunOdvr("play --headless --size 96x54 --out " + dir.string() + kSmall + "--json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const auto& frames = j["frames"];
+  ASSERT_EQ(frames.size(), 24u);  // every frame of the demo
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    EXPECT_EQ(frames[i]["view_frame"].get<int>(), static_cast<int>(i)) << "frame " << i;  // the video's rate
+    EXPECT_GT(frames[i]["car_pixels"].get<int>(), 20) << "frame " << i;
+  }
+  // The car keeps its 6 m lead, moving with the camera (the demo's 0.36 m a frame), until it
+  // reaches the street's end (8.28 m of path) and waits there while the video plays on.
+  const auto x = [&](int i) { return frames[static_cast<std::size_t>(i)]["car_world_xz"][0].get<double>(); };
+  EXPECT_NEAR(x(5) - x(0), 5 * 0.36, 0.05);
+  EXPECT_FALSE(frames[5]["at_stretch_end"].get<bool>());
+  EXPECT_NEAR(x(23) - x(0), 8.28 - 6, 0.1);
+  EXPECT_TRUE(frames[23]["at_stretch_end"].get<bool>());
+
+  // 12 s of full throttle: far past the demo's 8 m of street without the hold.
+  const auto w =
+      RunOdvr("play --headless --size 96x54 --drive W:12s --out " + (dir / "w").string() + kSmall + "--json");
+  ASSERT_EQ(w.exit_code, 0) << w.err;
+  const auto driven_report = nlohmann::json::parse(w.out);
+  const auto& driven = driven_report["frames"];
+  const double start = driven[0]["car_world_xz"][0].get<double>();
+  double furthest = start;
+  for (const auto& f : driven) furthest = std::max(furthest, f["car_world_xz"][0].get<double>());
+  EXPECT_LT(furthest - start, 8.28 - 6 + 5.0 + 0.5);  // to the path's end, the margin past it, a step
+  EXPECT_TRUE(driven.back()["at_stretch_end"].get<bool>());
+  EXPECT_GT(driven.back()["car_pixels"].get<int>(), 10);  // in view, not a speck
+  fs::remove_all(dir);
+}
+
 // Leak checking is off for the windowed child only: under the sanitizer run, GLX/X11 driver code
 // loaded through GLFW leaves allocations whose stacks LSan cannot name (so no suppression by
 // library matches them); the headless paths, which share all of our code, stay checked.
@@ -118,7 +155,9 @@ TEST(RunPlayGL, WindowUnderXvfbShowsTheCar) {
   const fs::path dir = TempDir("odvr_play_window");
   const std::string shot = (dir / "window.png").string();
   std::string log;
-  ASSERT_EQ(RunShell(Xvfb("play --size 480x270 --quit-after 2 --screenshot " + shot + kSmall), &log), 0) << log;
+  // A script of no keys: the car stands (without one it would cruise with the video).
+  ASSERT_EQ(RunShell(Xvfb("play --size 480x270 --quit-after 2 --drive -:0.01s --screenshot " + shot + kSmall), &log), 0)
+      << log;
   const cv::Mat window = cv::imread(shot);
   ASSERT_FALSE(window.empty()) << log;
   ASSERT_EQ(window.cols, 480);
