@@ -2,6 +2,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 
 #include "app/commands.h"
@@ -61,6 +62,14 @@ int Main(int argc, char** argv) {
   bool verbose = false, quiet = false;
   app.add_flag("-v,--verbose", verbose, "Log more (debug level)");
   app.add_flag("-q,--quiet", quiet, "Log errors only");
+  app.footer(
+      "Examples:\n"
+      "  odvr                                   play the demo street with its car\n"
+      "  odvr clip.mp4                          play a 360° video (mono or stereo), free look\n"
+      "  odvr play clip.mp4 --car car.glb       drive a car in it: the clip is reconstructed first, once\n"
+      "  odvr reconstruct --video clip.mp4 --camera-height 1.6 --out recon/\n"
+      "  odvr export --video clip.mp4 --trajectory recon/trajectory.json --car car.glb --out drive.mp4\n"
+      "odvr COMMAND --help shows a command's options and their defaults.");
   app.fallthrough();
   app.require_subcommand(0, 1);
 
@@ -70,20 +79,28 @@ int Main(int argc, char** argv) {
     runners.emplace_back(sub, spec.add(sub));
   }
 
-  // CLI11 would call an unknown command an "unexpected argument"; say what it is.
+  // `odvr clip.mp4` plays the clip, as `mpv clip.mp4` does: a first argument that is no command
+  // but an existing file or folder is `play`'s video. CLI11 would call any other unknown command
+  // an "unexpected argument"; say what it is.
+  std::vector<char*> args(argv, argv + argc);
+  static char play_name[] = "play";
   if (argc > 1 && argv[1][0] != '-') {
     const std::string name = argv[1];
     const bool known = std::any_of(Commands().begin(), Commands().end(), [&](const auto& c) { return c.name == name; });
-    if (!known) {
+    std::error_code ec;
+    if (!known && std::filesystem::exists(name, ec)) {
+      args.insert(args.begin() + 1, play_name);
+    } else if (!known) {
       std::string list;
       for (const auto& c : Commands()) list += (list.empty() ? "" : ", ") + c.name;
-      std::cerr << "odvr: unknown command '" << name << "' (commands: " << list << "; see odvr --help)\n";
+      std::cerr << "odvr: '" << name << "' is neither a command nor a file to play (commands: " << list
+                << "; see odvr --help)\n";
       return 2;
     }
   }
 
   try {
-    app.parse(argc, argv);
+    app.parse(static_cast<int>(args.size()), args.data());
   } catch (const CLI::Success& e) {
     return app.exit(e);  // --help, --version
   } catch (const CLI::ParseError& e) {

@@ -36,6 +36,19 @@ TEST(Cli, UnknownCommandExitsTwoWithOneLine) {
   EXPECT_NE(r.err.find("frobnicate"), std::string::npos);
 }
 
+// `odvr clip.mp4` plays the clip, as mpv and VLC users type it.
+TEST(Cli, AFileAsTheFirstArgumentIsPlayed) {
+  const odvr::testing::ScratchDir d("cli_file");
+  const std::string demo = std::string(ODVR_SOURCE_DIR) + "/media/demo/street.mp4";
+  const CliRun r = RunOdvr(demo + " --headless --frames 1 --size 32x18 --out " + (d.dir / "frames").string());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("rendered 1 frames to " + (d.dir / "frames").string()), std::string::npos) << r.out;
+  const CliRun missing = RunOdvr("/no/such/clip.mp4");
+  EXPECT_EQ(missing.exit_code, 2);
+  EXPECT_NE(missing.err.find("'/no/such/clip.mp4' is neither a command nor a file to play"), std::string::npos)
+      << missing.err;
+}
+
 TEST(Cli, BadFlagExitsTwoWithOneLine) {
   const CliRun r = RunOdvr("info --no-such-flag");
   EXPECT_EQ(r.exit_code, 2);
@@ -58,6 +71,7 @@ TEST(Cli, HelpListsTheCommands) {
   const CliRun r = RunOdvr("--help");
   EXPECT_EQ(r.exit_code, 0);
   EXPECT_NE(r.out.find("info"), std::string::npos);
+  EXPECT_NE(r.out.find("odvr clip.mp4"), std::string::npos) << r.out;  // examples
 }
 
 }  // namespace
