@@ -109,6 +109,16 @@ int RunLight(const LightOptions& o) {
               << model.peaks.size() << " peak SGs) in " << report.total_ms << " ms on " << report.transform.device
               << " (the first build, which makes what later frames reuse, " << first.total_ms << " ms); "
               << report.transform.stop_reason << "\n";
+    // An LDR frame's suns are clipped: their energy is a prior's estimate, not a measurement, and
+    // the errors below count it against the clipped pixels.
+    if (report.peak_detection.ldr)
+      std::cout << "LDR frame (no value above 1): "
+                << (model.peaks.empty() ? std::string("no clipped region looks like a sun")
+                                        : std::to_string(model.peaks.size()) +
+                                              " peak SGs estimated from clipped pixels by the sky-to-sun prior "
+                                              "(their energy is a guess; the errors below count it against the "
+                                              "clipped frame)")
+                << "\n";
     std::cout << "level  kept/total     lambda      ms   diffuse  glossy20 glossy200   rel_l2\n";
     for (const auto& l : levels)
       std::cout << fmt::format("{:5d} {:5d}/{:<5d} {:9.2f} {:7.2f} {:8.4f} {:9.4f} {:9.4f} {:8.4f}\n",

@@ -423,6 +423,44 @@ std::vector<double> SolidAngles(int w, int h) {
 }
 
 // `owned`: null, or the mutable image `input` refers to (sanitized in place, moved into the
+// Spread of pixel directions about their mean `axis`: the square root of the ratio of the two
+// principal second moments in the tangent plane (1 for a disc, large for a line).
+double Elongation(const std::vector<int>& pixels, const glm::dvec3& axis, int w, int h) {
+  const glm::dvec3 t1 =
+      glm::normalize(glm::cross(axis, std::abs(axis.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0)));
+  const glm::dvec3 t2 = glm::cross(axis, t1);
+  double sxx = 0, syy = 0, sxy = 0;
+  const PixelDirections& direction = PixelDirections::Of(w, h);
+  for (int p : pixels) {
+    const glm::dvec3 d = direction(p);
+    const double x = glm::dot(d, t1), y = glm::dot(d, t2);
+    sxx += x * x;
+    syy += y * y;
+    sxy += x * y;
+  }
+  const double tr = sxx + syy, det = sxx * syy - sxy * sxy;
+  const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
+  const double l1 = tr / 2 + disc, l2 = std::max(tr / 2 - disc, 1e-30);
+  return std::sqrt(l1 / l2);
+}
+
+// Whether a clipped component of an LDR frame can be a sun (PeakDetectorOptions' ldr_* gates).
+bool CouldBeAnLdrSun(const std::vector<int>& pixels, const glm::vec3& ring, int w, int h,
+                     const PeakDetectorOptions& options) {
+  const PixelDirections& direction = PixelDirections::Of(w, h);
+  glm::dvec3 sum(0);
+  for (int p : pixels) sum += direction(p);
+  if (glm::length(sum) < 1e-12) return false;
+  const glm::dvec3 axis = glm::normalize(sum);
+  if (axis.y < std::sin(options.ldr_min_elevation_deg * sphere::kPi / 180)) return false;  // below the horizon
+  const double cos_radius = std::cos(options.ldr_max_sun_radius_deg * sphere::kPi / 180);
+  for (int p : pixels)
+    if (glm::dot(direction(p), axis) < cos_radius) return false;  // not compact
+  const float ring_level[3] = {ring.x, ring.y, ring.z};
+  if (Luminance(ring_level) > options.ldr_max_ring_level * options.ldr_clip_level) return false;  // blown-out area
+  return pixels.size() < 6 || Elongation(pixels, axis, w, h) <= options.ldr_max_elongation;       // round
+}
+
 // residue). Without `keep_residue` the residue is left empty unless the frame is LDR.
 PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
                      const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
@@ -470,6 +508,12 @@ void PeakDetectorOptions::Check() const {
   if (!(min_contrast >= 1)) throw Error("peak contrast", "must be at least 1 (× the surrounding level)");
   if (!(min_lambda >= 0)) throw Error("peak minimum lambda", "must be >= 0");
   if (candidate_block < 1) throw Error("peak candidate block", "must be at least 1 pixel");
+  if (!(ldr_max_sun_radius_deg > 0 && ldr_max_sun_radius_deg < 90))
+    throw Error("LDR sun radius", "must be in (0, 90) degrees");
+  if (!(ldr_max_elongation >= 1)) throw Error("LDR sun elongation", "must be at least 1");
+  if (!(ldr_max_ring_level > 0 && ldr_max_ring_level <= 1)) throw Error("LDR sun ring level", "must be in (0, 1]");
+  if (!(ldr_min_elevation_deg >= -90 && ldr_min_elevation_deg < 90))
+    throw Error("LDR sun elevation", "must be in [-90, 90) degrees");
 }
 
 std::vector<std::vector<int>> BrightComponents(const sphere::EquirectImage& frame, double threshold, bool ldr,
@@ -620,6 +664,8 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
       for (int p : pixels) brightest = std::max(brightest, Luminance(value(p)));
       const float ring_level[3] = {c.background.x, c.background.y, c.background.z};
       if (brightest < options.min_contrast * Luminance(ring_level)) continue;
+    } else if (!CouldBeAnLdrSun(pixels, c.background, w, h, options)) {
+      continue;
     }
     std::vector<glm::dvec3> excess(pixels.size());
     for (std::size_t i = 0; i < pixels.size(); ++i) {
@@ -641,22 +687,7 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
     if (whole.lambda < options.min_lambda) continue;
     int k = 1;
     if (options.max_sgs_per_peak > 1 && pixels.size() >= 6) {
-      glm::dvec3 t1 = glm::normalize(
-          glm::cross(whole.axis, std::abs(whole.axis.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0)));
-      glm::dvec3 t2 = glm::cross(whole.axis, t1);
-      double sxx = 0, syy = 0, sxy = 0;
-      const PixelDirections& direction = PixelDirections::Of(w, h);
-      for (int p : pixels) {
-        const glm::dvec3 d = direction(p);
-        const double x = glm::dot(d, t1), y = glm::dot(d, t2);
-        sxx += x * x;
-        syy += y * y;
-        sxy += x * y;
-      }
-      const double tr = sxx + syy, det = sxx * syy - sxy * sxy;
-      const double disc = std::sqrt(std::max(0.0, tr * tr / 4 - det));
-      const double l1 = tr / 2 + disc, l2 = std::max(tr / 2 - disc, 1e-30);
-      const double ratio = std::sqrt(l1 / l2);
+      const double ratio = Elongation(pixels, whole.axis, w, h);
       if (ratio > options.elongation_for_split)
         k = std::min(options.max_sgs_per_peak, ratio > 2 * options.elongation_for_split ? 3 : 2);
     }

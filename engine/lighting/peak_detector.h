@@ -20,9 +20,14 @@
 // is split into 2–3 SGs only when it is compact as a whole: a strip up to ~12° long.
 //
 // LDR frames (every value ≤ 1): a sun is a compact blob clipped at 255, its true intensity lost.
-// Its energy is then estimated from a sky-to-sun prior: the sun's irradiance on a surface facing
-// it is `ldr_sun_to_sky_ratio` (default 4, a clear day's direct-to-diffuse ratio at mid
-// elevations) times the irradiance the rest of the sky gives that surface.
+// Clipped is not bright, though: a white wall, a grid line, a window are clipped too, and as
+// "suns" of estimated energy they put phantom lights of amplitude ~2000 on a room's white lines.
+// A clipped component counts only where a sun can be: above the horizon, compact (within
+// `ldr_max_sun_radius_deg` of its centre), round (principal axes within `ldr_max_elongation`)
+// and standing out from its ring (the ring under `ldr_max_ring_level` × the clip level, not the
+// clipped core of a larger blown-out area). Its energy is then estimated from a sky-to-sun prior: the sun's irradiance
+// on a surface facing it is `ldr_sun_to_sky_ratio` (default 4, a clear day's direct-to-diffuse ratio at mid elevations)
+// times the irradiance the rest of the sky gives that surface.
 #include <vector>
 
 #include "engine/lighting/sg_lighting.h"
@@ -44,6 +49,10 @@ struct PeakDetectorOptions {
   double elongation_for_split = 2.0;  // principal-axis ratio above which a component is split
   double ldr_clip_level = 0.98;       // linear value treated as clipped in an LDR frame
   double ldr_sun_to_sky_ratio = 4.0;
+  double ldr_min_elevation_deg = 0;    // a sun is above the horizon
+  double ldr_max_sun_radius_deg = 25;  // the sun's disc with its bloom and flare, clipped
+  double ldr_max_elongation = 2.0;     // principal-axis ratio: a disc's is 1, a line's many
+  double ldr_max_ring_level = 0.9;     // the ring's luminance at most this × the clip level
   // Side of the blocks whose brightest pixel the first pass records; only blocks with a bright
   // pixel are labelled. Any size gives the same components.
   int candidate_block = 32;

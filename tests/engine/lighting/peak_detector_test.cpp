@@ -445,6 +445,36 @@ TEST(PeakDetector, ClippedLdrSunStillYieldsAPeakFromTheSkyPrior) {
   EXPECT_NEAR(d2.peaks[0].energy.y, 2 * p.energy.y, 1e-3 * p.energy.y);
 }
 
+// Clipped is not bright in an LDR frame: a room's white grid lines, a blown-out floor, a clipped
+// disc below the horizon are no sun (each became one of estimated amplitude ~2000, an error of
+// 200 % in the diffuse light); the same disc above the horizon still is.
+TEST(PeakDetector, ClippedLdrPixelsAreASunOnlyWhereASunCanBe) {
+  const auto room = [] {
+    sphere::EquirectImage frame = SkyMap(512, 256);
+    for (float& v : frame.rgb) v = 0.25f + 0.4f * v / 3.0f;  // a grey room, nothing clipped
+    // White strips on the walls, 1.4° wide and 6° long, apart from each other.
+    for (int k = 0; k < 8; ++k)
+      for (int y = 60; y < 69; ++y)
+        for (int x = 32 + 64 * k; x < 34 + 64 * k; ++x)
+          for (int c = 0; c < 3; ++c) frame.at(x, y)[c] = 1.0f;
+    return frame;
+  };
+  sphere::EquirectImage lines = room();
+  EXPECT_EQ(DetectPeaks(lines).peaks.size(), 0u) << "white strips";
+  sphere::EquirectImage below = room();
+  AddDisc(&below, Dir(40, -30), 3 * sphere::kPi / 180, 1.f);
+  EXPECT_EQ(DetectPeaks(below).peaks.size(), 0u) << "a clipped disc below the horizon";
+  sphere::EquirectImage blown = room();
+  AddDisc(&blown, Dir(40, 40), 35 * sphere::kPi / 180, 1.f);
+  EXPECT_EQ(DetectPeaks(blown).peaks.size(), 0u) << "a blown-out area 70° across";
+  sphere::EquirectImage sun = room();
+  AddDisc(&sun, Dir(40, 30), 3 * sphere::kPi / 180, 1.f);
+  const PeakDetection d = DetectPeaks(sun);
+  ASSERT_EQ(d.peaks.size(), 1u);
+  EXPECT_TRUE(d.peaks[0].estimated_from_clipped_ldr);
+  EXPECT_LT(AngleDeg(PeakAxis(d.peaks[0]), Dir(40, 30)), 1.0);
+}
+
 TEST(PeakDetector, LdrFrameWithoutClippingHasNoPeak) {
   sphere::EquirectImage frame = SkyMap(256, 128);
   for (float& v : frame.rgb) v *= 0.6f;
