@@ -13,9 +13,9 @@ struct PlayerOptions {
   std::string video;            // anything capture::OpenSource accepts (an equirect video, image sequence)
   std::string stereo = "auto";  // OpenPlayableVideo's layout: auto, mono, top-bottom, side-by-side
   int width = 1280, height = 720;
-  bool headless = false;    // forced headless; also chosen when no display is available
-  int headless_frames = 0;  // 0 = every frame of the video
-  std::string out_dir = "odvr_play_frames";
+  bool headless = false;                     // forced headless; also chosen when no display is available
+  int headless_frames = 0;                   // 0 = every frame of the video
+  std::string out_dir = "odvr_play_frames";  // run_play's default is the temporary directory's
   double exposure = 1.0;
   bool loop = true;
   ViewState view;

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
@@ -32,6 +33,7 @@ struct ExportCommand {
   double fps = -1;    // -1: the video's
   std::string codec;  // capture::VideoWriterOptions::codec: "" by the extension
   int crf = 20;
+  bool json = false;
 };
 
 std::pair<int, int> ParseExportSize(const std::string& text) {
@@ -100,8 +102,16 @@ int RunExport(ExportCommand& c) {
     capture::CheckWrittenVideo(tmp, c.out, frames);
   });
   const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
-  std::cout << c.out << ": " << frames << " frames " << width << "x" << height << " at " << fps << " fps (" << encoder
-            << ", crf " << c.crf << ") in " << elapsed << " s\n";
+  if (c.json) {
+    std::cout << nlohmann::json{{"output", c.out},    {"frames", frames},        {"size", {width, height}},
+                                {"fps", fps},         {"codec", encoder},        {"crf", c.crf},
+                                {"seconds", elapsed}, {"cruise", script.empty()}}
+                     .dump(2)
+              << "\n";
+  } else {
+    std::cout << c.out << ": " << frames << " frames " << width << "x" << height << " at " << fps << " fps (" << encoder
+              << ", crf " << c.crf << ") in " << elapsed << " s\n";
+  }
   return 0;
 }
 
@@ -133,6 +143,7 @@ CommandFn AddExport(CLI::App* sub) {
   sub->add_option("--size", c->size, "WIDTHxHEIGHT (even)")->capture_default_str();
   sub->add_option("--frames", c->frames, "Frames to write (default: the path's duration)");
   sub->add_option("--fps", c->fps, "Frame rate (default: the video's)");
+  sub->add_flag("--json", c->json, "Print a JSON report");
   sub->add_option("--levels", s.lighting_levels, "Car light: HEALPix levels (1..6)")->capture_default_str();
   sub->add_option("--voxels", s.voxel_resolution, "Visibility grid per side (64, 128, 256)")->capture_default_str();
   sub->add_option("--supersample", s.supersample,

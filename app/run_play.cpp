@@ -21,6 +21,7 @@ struct PlayCommand {
   double camera_height_m = 0;
   std::string size = "1280x720";
   CLI::Option* size_option = nullptr;
+  CLI::Option* out_option = nullptr;
   bool json = false;
   bool no_car = false;
   bool live = false;
@@ -32,6 +33,10 @@ int RunPlay(PlayCommand& c) {
   // 1280x720 car frame takes seconds: unless asked, render the demo's files at a quarter of that.
   if (c.size_option->count() == 0 && (c.options.headless || !DisplayAvailable())) c.size = "640x360";
   std::tie(c.options.width, c.options.height) = ParseSize(c.size);
+  // Headless frames go where --out says, else to the temporary directory: never into whatever
+  // folder the command was run from (the source tree, when the README's demo command runs it).
+  if (c.out_option->count() == 0)
+    c.options.out_dir = (std::filesystem::temp_directory_path() / "odvr_play_frames").string();
   if (c.live) {
     if (!c.options.video.empty()) throw UsageError("--live", "plays the rig's cameras, not a video: drop the video");
     if (!c.options.trajectory.empty())
@@ -131,7 +136,8 @@ CommandFn AddPlay(CLI::App* sub) {
       sub->add_option("--size", c->size, "Window size WIDTHxHEIGHT (headless default: 640x360)")->capture_default_str();
   sub->add_flag("--headless", o.headless, "Render frames to PNG files instead of opening a window");
   sub->add_option("--frames", o.headless_frames, "Headless: how many frames (default: all)");
-  sub->add_option("--out", o.out_dir, "Headless: output directory")->capture_default_str();
+  c->out_option = sub->add_option("--out", o.out_dir,
+                                  "Headless: output directory (default: odvr_play_frames in the temporary directory)");
   sub->add_option("--stereo", o.stereo,
                   "A stereo 360° video shows one eye: auto (the file's metadata, else the frame's shape: 1:1 "
                   "top-bottom, 4:1 side by side), mono, top-bottom, side-by-side")

@@ -200,6 +200,15 @@ TEST(RunPlayGL, ExportWritesAClipAtomically) {
   EXPECT_EQ(frames, 6);
   // H.264 by default for .mp4 (it was MPEG-4 Part 2), which every player and site takes.
   EXPECT_NE(r.out.find("(libx264, crf 20)"), std::string::npos) << r.out;
+  const auto js = RunOdvr("export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
+                          (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
+                          " --frames 2 --size 64x36 --codec h265 --json --out " + (dir / "j.mkv").string() + kSmall);
+  ASSERT_EQ(js.exit_code, 0) << js.err;
+  const auto report = nlohmann::json::parse(js.out);
+  EXPECT_EQ(report["frames"].get<int>(), 2);
+  EXPECT_EQ(report["codec"].get<std::string>(), "libx265");
+  EXPECT_TRUE(report["cruise"].get<bool>());
+  fs::remove(dir / "j.mkv");
   const std::string probe = "ffprobe -v error -select_streams v:0 -show_entries stream=codec_name -of csv=p=0 " +
                             out.string() + " > " + (dir / "codec.txt").string();
   ASSERT_EQ(std::system(probe.c_str()), 0);
