@@ -206,8 +206,7 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
   im.smoother = LightWeightSmoother(options_.light_smoothing_s);
   if (!std::filesystem::exists(options_.car))
     throw Error(options_.car, "car model not found (a glTF 2.0 .glb or .gltf is needed for --car)");
-  im.model = scene::LoadGltfScene(options_.car);
-  if (im.model.triangle_count() == 0) throw Error(options_.car, "the car model has no triangles");
+  im.model = scene::LoadGltfScene(options_.car);  // refuses a model that draws no triangle
   im.decoder = std::make_unique<FrameDecoder>(OpenPlayableVideo(options_.video, options_.stereo), 8);
   const auto poses = tracking::LoadTrajectory(options_.trajectory, im.decoder->fps());
   im.announced_frames = im.decoder->frame_count();
@@ -254,9 +253,6 @@ constexpr double kStandingPathM = 0.5, kStandingAheadM = 4.0;
 // How far the driven car may go past the first or last camera, or to the side of the path,
 // before it is held: a car's length beyond the ends, a wide street's half width to the side.
 constexpr double kStretchEndMarginM = 5.0, kStretchSideMarginM = 15.0;
-}  // namespace
-
-namespace {
 
 // The point at arc length s_m (clamped) of the polyline `p`, and the direction of its segment.
 glm::dvec3 PathPoint(const std::vector<glm::dvec3>& p, double s_m, glm::dvec3* dir) {

@@ -80,8 +80,7 @@ LiveScene::LiveScene(LiveSceneOptions options) : options_(std::move(options)), i
   if (!options_.car.empty()) {
     if (!std::filesystem::exists(options_.car))
       throw Error(options_.car, "car model not found (a glTF 2.0 .glb or .gltf is needed for --car)");
-    im.model = scene::LoadGltfScene(options_.car);
-    if (im.model.triangle_count() == 0) throw Error(options_.car, "the car model has no triangles");
+    im.model = scene::LoadGltfScene(options_.car);  // refuses a model that draws no triangle
     im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), options_.Render());
     im.car_centre = BoundsCentre(*im.renderer);
   }

@@ -7,10 +7,14 @@
 #include <vector>
 
 namespace odvr::capture {
+namespace {
 
-bool JpegEndsEarly(const std::filesystem::path& path) {
+std::vector<unsigned char> ReadBytes(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
-  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+bool JpegBytesEndEarly(const std::vector<unsigned char>& bytes) {
   if (bytes.size() < 2 || bytes[0] != 0xFF || bytes[1] != 0xD8) return false;  // not a JPEG
   // In entropy-coded data a 0xFF byte is always followed by 0x00 (stuffing) or a restart marker,
   // so the marker bytes FF DA (start of scan) and FF D9 (end of image) only occur as markers. An
@@ -22,11 +26,17 @@ bool JpegEndsEarly(const std::filesystem::path& path) {
   return std::search(last_scan, bytes.end(), std::begin(end_of_image), std::end(end_of_image)) == bytes.end();
 }
 
+}  // namespace
+
+bool JpegEndsEarly(const std::filesystem::path& path) { return JpegBytesEndEarly(ReadBytes(path)); }
+
 cv::Mat ReadImageFile(const std::filesystem::path& path, int flags, std::string* problem) {
-  cv::Mat image = cv::imread(path.string(), flags);
+  // The file is read once: the check and the decoder see the same bytes.
+  const std::vector<unsigned char> bytes = ReadBytes(path);
+  cv::Mat image = bytes.empty() ? cv::Mat() : cv::imdecode(bytes, flags);
   if (image.empty()) {
     *problem = "unreadable image";
-  } else if (JpegEndsEarly(path)) {
+  } else if (JpegBytesEndEarly(bytes)) {
     *problem = "truncated JPEG: the file ends before its end-of-image marker";
     image.release();
   }

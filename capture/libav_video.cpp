@@ -24,12 +24,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string AvError(int code) {
-  char text[AV_ERROR_MAX_STRING_SIZE] = {};
-  av_strerror(code, text, sizeof text);
-  return text;
-}
-
 // libav's log, one line at a time, to spdlog: warnings and errors only, as libav's own default
 // would print them to stderr past the program's log. A line can arrive in pieces (a prefix, then
 // the text), from any decoder thread: each thread assembles its own.
@@ -79,10 +73,10 @@ Input OpenInput(const std::string& path) {
   if (!fs::exists(path)) throw Error(path, "no such video file");
   AVFormatContext* raw = nullptr;
   int rc = avformat_open_input(&raw, path.c_str(), nullptr, nullptr);
-  if (rc < 0) throw Error(path, "not a video libav can read (" + AvError(rc) + ")");
+  if (rc < 0) throw Error(path, "not a video libav can read (" + LibavErrorText(rc) + ")");
   Input in{FormatPtr(raw)};
   rc = avformat_find_stream_info(in.format.get(), nullptr);
-  if (rc < 0) throw Error(path, "cannot read its stream parameters (" + AvError(rc) + ")");
+  if (rc < 0) throw Error(path, "cannot read its stream parameters (" + LibavErrorText(rc) + ")");
   auto usable = [&](int i) {
     const AVStream* st = in.format->streams[i];
     return st->codecpar->codec_type == AVMEDIA_TYPE_VIDEO && !(st->disposition & AV_DISPOSITION_ATTACHED_PIC);
@@ -180,6 +174,12 @@ constexpr int kMaxConsecutiveErrors = 256;
 
 }  // namespace
 
+std::string LibavErrorText(int code) {
+  char text[AV_ERROR_MAX_STRING_SIZE] = {};
+  av_strerror(code, text, sizeof text);
+  return text;
+}
+
 // The callback is process-wide (OpenCV's FFmpeg backend shares the same libav): set it once.
 void RouteLibavLog() {
   static std::once_flag once;
@@ -218,12 +218,12 @@ struct LibavVideoReader::Impl {
     codec.reset(avcodec_alloc_context3(decoder));
     if (!codec) throw Error(path, "out of memory for a decoder");
     int rc = avcodec_parameters_to_context(codec.get(), st->codecpar);
-    if (rc < 0) throw Error(path, "cannot set up its '" + probe.codec + "' decoder (" + AvError(rc) + ")");
+    if (rc < 0) throw Error(path, "cannot set up its '" + probe.codec + "' decoder (" + LibavErrorText(rc) + ")");
     codec->pkt_timebase = st->time_base;
     codec->thread_count = 0;  // one per core
     codec->thread_type = FF_THREAD_FRAME | FF_THREAD_SLICE;
     rc = avcodec_open2(codec.get(), decoder, nullptr);
-    if (rc < 0) throw Error(path, "cannot open its '" + probe.codec + "' decoder (" + AvError(rc) + ")");
+    if (rc < 0) throw Error(path, "cannot open its '" + probe.codec + "' decoder (" + LibavErrorText(rc) + ")");
     time_base = st->time_base;
     rate = FrameRate(st);
     if (origin == AV_NOPTS_VALUE) origin = st->start_time;
@@ -249,7 +249,7 @@ struct LibavVideoReader::Impl {
     while (true) {
       const int rc = av_read_frame(in.format.get(), packet.get());
       if (rc < 0) {
-        if (rc != AVERROR_EOF) read_error = AvError(rc);
+        if (rc != AVERROR_EOF) read_error = LibavErrorText(rc);
         avcodec_send_packet(codec.get(), nullptr);
         draining = true;
         return;

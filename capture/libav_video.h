@@ -35,6 +35,8 @@ struct VideoProbe {
 
 // Sends libav's own log (process-wide) to spdlog: warnings and errors, one line each. Idempotent.
 void RouteLibavLog();
+// libav's text for one of its negative error codes ("No space left on device").
+std::string LibavErrorText(int code);
 
 // Throws odvr::Error naming `path` when it is missing, not a video libav can read, or has no
 // video stream.

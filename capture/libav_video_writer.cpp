@@ -18,12 +18,6 @@ extern "C" {
 namespace odvr::capture {
 namespace {
 
-std::string AvError(int code) {
-  char text[AV_ERROR_MAX_STRING_SIZE] = {};
-  av_strerror(code, text, sizeof text);
-  return text;
-}
-
 std::string Lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
@@ -62,7 +56,7 @@ struct LibavVideoWriter::Impl {
   std::string codec_name;
 
   [[noreturn]] void Fail(const std::string& what, int code) const {
-    throw Error(name, what + (code < 0 ? ": " + AvError(code) : std::string()));
+    throw Error(name, what + (code < 0 ? ": " + LibavErrorText(code) : std::string()));
   }
 
   // Sends `input` (nullptr: drain) and writes every packet the encoder has ready.

@@ -1,9 +1,9 @@
-#include "fuzz/fuzz_input.h"
-
+// Linked into every fuzz target as an object (libFuzzer only looks for LLVMFuzzerInitialize as a
+// weak symbol, which would not pull it from a static library).
 #include <spdlog/spdlog.h>
 
-namespace odvr::fuzz {
-
-void QuietLogs() { spdlog::set_level(spdlog::level::off); }
-
-}  // namespace odvr::fuzz
+// odvr's own warnings (clamped pixels and the like) would flood the fuzzer's output.
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  spdlog::set_level(spdlog::level::off);
+  return 0;
+}

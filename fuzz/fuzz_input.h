@@ -6,6 +6,7 @@
 // The contract a target checks is the loaders' own: malformed input ends in odvr::Error (a one-line
 // message naming the file), never in a crash, a sanitizer report, a hang, or another exception.
 // odvr::Error is caught; anything else escapes to libFuzzer, which reports it as a crash.
+// fuzz_input.cpp's LLVMFuzzerInitialize, linked into every target, quiets odvr's own log.
 #include <unistd.h>
 
 #include <algorithm>
@@ -29,8 +30,5 @@ inline std::filesystem::path WriteInput(const std::uint8_t* data, std::size_t si
   out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
   return path;
 }
-
-// Quiets odvr's own log (warnings for clamped pixels and the like would flood the fuzzer's output).
-void QuietLogs();
 
 }  // namespace odvr::fuzz

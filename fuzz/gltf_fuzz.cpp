@@ -3,11 +3,6 @@
 #include "engine/scene/gltf_scene.h"
 #include "fuzz/fuzz_input.h"
 
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  odvr::fuzz::QuietLogs();
-  return 0;
-}
-
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const bool binary = odvr::fuzz::StartsWith(data, size, "glTF");
   const auto path = odvr::fuzz::WriteInput(data, size, binary ? ".glb" : ".gltf");

@@ -3,11 +3,6 @@
 #include "engine/lighting/sg_lighting.h"
 #include "fuzz/fuzz_input.h"
 
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  odvr::fuzz::QuietLogs();
-  return 0;
-}
-
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {
     odvr::lighting::SgLighting::Load(odvr::fuzz::WriteInput(data, size, ".json"));

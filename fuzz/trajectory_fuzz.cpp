@@ -4,11 +4,6 @@
 #include "fuzz/fuzz_input.h"
 #include "tracking/evaluation.h"
 
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  odvr::fuzz::QuietLogs();
-  return 0;
-}
-
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {
     odvr::tracking::LoadTrajectoryJson(odvr::fuzz::WriteInput(data, size, ".json"));

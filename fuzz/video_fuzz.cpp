@@ -18,11 +18,6 @@ std::string ExtensionOf(const std::uint8_t* data, std::size_t size) {
 
 }  // namespace
 
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  odvr::fuzz::QuietLogs();
-  return 0;
-}
-
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const auto path = odvr::fuzz::WriteInput(data, size, ExtensionOf(data, size)).string();
   try {

@@ -30,10 +30,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The largest model, in world metres, the renderer takes: the loader's bound on a vertex's distance
-// from the origin (GltfLoadOptions::max_coordinate_m), across.
-constexpr double kMaxModelExtentM = 2e5;
-
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // render_shade.comp's material-term types (brdf_lobes.glsl).
@@ -753,10 +749,12 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
     // The loader bounds the model in its own frame; a model matrix can still scale it past what a
     // float voxel grid can hold. Say which model and how large, not "voxel size: inf".
     const glm::dvec3 extent = glm::dvec3(im.bounds.max) - glm::dvec3(im.bounds.min);
+    // The largest model taken: the loader's bound on a vertex's distance from the origin, across.
+    const double max_extent_m = 2 * scene::GltfLoadOptions{}.max_coordinate_m;
     const double largest = std::max({extent.x, extent.y, extent.z});
-    if (!std::isfinite(largest) || largest > kMaxModelExtentM)
+    if (!std::isfinite(largest) || largest > max_extent_m)
       throw Error(model.source.string(), "placed by its model matrix it spans " + std::to_string(largest) +
-                                             " m, more than the " + std::to_string(int(kMaxModelExtentM)) +
+                                             " m, more than the " + std::to_string(int(max_extent_m)) +
                                              " m a car's voxel grid can hold");
     im.spec = visibility::VoxelGridSpec::Covering(glm::dvec3(im.bounds.min), glm::dvec3(im.bounds.max),
                                                   options_.voxel_resolution);

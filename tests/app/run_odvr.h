@@ -12,6 +12,8 @@
 #include <sstream>
 #include <string>
 
+#include "tests/scratch_dir.h"
+
 namespace odvr::testing {
 
 struct CliRun {
@@ -50,14 +52,5 @@ inline std::string ReadText(const std::filesystem::path& path) {
 inline int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 
 // A fresh folder for one test, removed after it.
-struct ScratchDir {
-  explicit ScratchDir(const std::string& prefix) {
-    dir = std::filesystem::temp_directory_path() / (prefix + "_" + std::to_string(::getpid()) + "_" +
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir);
-  }
-  ~ScratchDir() { std::filesystem::remove_all(dir); }
-  std::filesystem::path dir;
-};
 
 }  // namespace odvr::testing

@@ -1,27 +1,19 @@
 #include "capture/image_file.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+
+#include "tests/scratch_dir.h"
 
 namespace odvr::capture {
 namespace {
 
 namespace fs = std::filesystem;
 
-class ImageFile : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("odvr_image_file_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
-};
+using odvr::testing::ScratchDir;
 
 cv::Mat Noise(int width, int height) {
   cv::Mat image(height, width, CV_8UC3);
@@ -29,8 +21,10 @@ cv::Mat Noise(int width, int height) {
   return image;
 }
 
-TEST_F(ImageFile, AJpegCutShortIsRefusedWhereOpenCvFillsItWithGrey) {
-  const fs::path whole = dir_ / "whole.jpg", cut = dir_ / "cut.jpg";
+TEST(ImageFile, AJpegCutShortIsRefusedWhereOpenCvFillsItWithGrey) {
+  const ScratchDir scratch("odvr_image_file");
+  const fs::path& dir = scratch.dir;
+  const fs::path whole = dir / "whole.jpg", cut = dir / "cut.jpg";
   ASSERT_TRUE(cv::imwrite(whole.string(), Noise(320, 160)));
   fs::copy_file(whole, cut);
   fs::resize_file(cut, fs::file_size(whole) * 2 / 3);
@@ -45,8 +39,10 @@ TEST_F(ImageFile, AJpegCutShortIsRefusedWhereOpenCvFillsItWithGrey) {
   EXPECT_TRUE(JpegEndsEarly(cut));
 }
 
-TEST_F(ImageFile, ProgressiveJpegsAndOtherFormatsAreJudgedRight) {
-  const fs::path progressive = dir_ / "p.jpg", png = dir_ / "a.png";
+TEST(ImageFile, ProgressiveJpegsAndOtherFormatsAreJudgedRight) {
+  const ScratchDir scratch("odvr_image_file");
+  const fs::path& dir = scratch.dir;
+  const fs::path progressive = dir / "p.jpg", png = dir / "a.png";
   ASSERT_TRUE(cv::imwrite(progressive.string(), Noise(320, 160), {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
   ASSERT_TRUE(cv::imwrite(png.string(), Noise(64, 32)));
   EXPECT_FALSE(JpegEndsEarly(progressive));
@@ -54,18 +50,20 @@ TEST_F(ImageFile, ProgressiveJpegsAndOtherFormatsAreJudgedRight) {
   // Cut between two of the progressive scans: still short of the end-of-image marker.
   fs::resize_file(progressive, fs::file_size(progressive) / 2);
   EXPECT_TRUE(JpegEndsEarly(progressive));
-  std::ofstream(dir_ / "text.jpg") << "not a jpeg";
+  std::ofstream(dir / "text.jpg") << "not a jpeg";
   std::string problem;
-  EXPECT_TRUE(ReadImageFile(dir_ / "text.jpg", cv::IMREAD_COLOR, &problem).empty());
+  EXPECT_TRUE(ReadImageFile(dir / "text.jpg", cv::IMREAD_COLOR, &problem).empty());
   EXPECT_EQ(problem, "unreadable image");
 }
 
-TEST_F(ImageFile, ACameraJpegWithItsExifThumbnailIsWholeAndItsCutIsNot) {
+TEST(ImageFile, ACameraJpegWithItsExifThumbnailIsWholeAndItsCutIsNot) {
   // A GoPro still carries a thumbnail with its own scan and end marker near the file's start.
   const fs::path camera = fs::path(ODVR_SHARED_DIR) / "data/rig_fusion/5_2k/directory/BK/GPBK7152_img1.jpg";
   if (!fs::exists(camera)) GTEST_SKIP() << "needs ../shared/data/rig_fusion (absent in a user's clone)";
+  const ScratchDir scratch("odvr_image_file");
+  const fs::path& dir = scratch.dir;
   EXPECT_FALSE(JpegEndsEarly(camera));
-  const fs::path cut = dir_ / "cut.jpg";
+  const fs::path cut = dir / "cut.jpg";
   fs::copy_file(camera, cut);
   fs::resize_file(cut, fs::file_size(camera) / 2);
   EXPECT_TRUE(JpegEndsEarly(cut));

@@ -1,7 +1,6 @@
 #include "capture/libav_video_writer.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -10,6 +9,7 @@
 
 #include "capture/libav_video.h"
 #include "engine/core/error.h"
+#include "tests/scratch_dir.h"
 
 namespace odvr {
 namespace {
@@ -26,13 +26,8 @@ namespace fs = std::filesystem;
 
 class LibavVideoWriter : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("odvr_video_writer_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  odvr::testing::ScratchDir scratch_{"odvr_video_writer"};
+  const fs::path& dir_ = scratch_.dir;
 };
 
 // Frame i: smooth colour ramps (what a street's sky and road are) and a bright square moving
