@@ -20,7 +20,7 @@
 #include "app/player.h"
 #include "app/view_controller.h"
 #include "app/window_input.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/gl/objects.h"
 #include "engine/image/image_io.h"

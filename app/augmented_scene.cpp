@@ -12,7 +12,9 @@
 
 #include "app/frame_decoder.h"
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/srgb.h"
+#include "core/timing.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/scene/gltf_scene.h"
@@ -23,10 +25,6 @@ namespace odvr::app {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
-
-// Blender/dataset world (Z up) → odvr's (Y up): (x, y, z) → (x, z, −y).
-const glm::dmat3 kYupFromZup = glm::transpose(glm::dmat3(1, 0, 0, 0, 0, 1, 0, -1, 0));
 
 double ParseDuration(const std::string& text, const std::string& step) {
   std::string number = text;
@@ -159,9 +157,8 @@ struct AugmentedScene::Impl {
   // Linear float RGB of an 8-bit sRGB image.
   static cv::Mat Linear(const cv::Mat& rgb8) {
     static const cv::Mat lut = [] {
-      cv::Mat l(1, 256, CV_32F);
-      for (int i = 0; i < 256; ++i) l.at<float>(i) = image::SrgbToLinear(i / 255.f);
-      return l;
+      const std::array<float, 256>& table = Srgb8ToLinearTable();
+      return cv::Mat(1, 256, CV_32F, const_cast<float*>(table.data())).clone();
     }();
     cv::Mat f;
     rgb8.convertTo(f, CV_32F);
@@ -223,8 +220,9 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
       t[i] = p->world_from_rig(i, 3);
     }
     frame_index_.push_back(static_cast<int>(index));
-    im.world_from_pano.push_back(kYupFromZup * r * glm::transpose(kYupFromZup));
-    im.positions.push_back(kYupFromZup * t);
+    const glm::dmat3 yup_from_zup = sphere::YupFromZup();
+    im.world_from_pano.push_back(yup_from_zup * r * glm::transpose(yup_from_zup));
+    im.positions.push_back(yup_from_zup * t);
   }
   if (frame_index_.empty())
     throw Error(options_.trajectory, "shares no frame index with " + options_.video + " (" +
@@ -528,7 +526,7 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
   glm::dvec3 d = car_centre_world - eye;
   if (glm::length(d) < 1e-6) d = car.forward;
   d = glm::normalize(d);
-  const double pi = sphere::kPi;
+  const double pi = kPi;
   const double az = std::atan2(d.z, d.x) + view.yaw_deg * pi / 180;  // +z is right of +x seen from above
   const double el = std::clamp(std::asin(std::clamp(d.y, -1.0, 1.0)) + view.pitch_deg * pi / 180, -1.55, 1.55);
   const glm::dvec3 look(std::cos(el) * std::cos(az), std::sin(el), std::cos(el) * std::sin(az));

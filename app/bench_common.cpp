@@ -10,7 +10,7 @@
 #include <iostream>
 #include <thread>
 
-#include "engine/core/atomic_file.h"
+#include "core/atomic_file.h"
 
 namespace odvr::app {
 

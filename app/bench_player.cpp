@@ -14,8 +14,8 @@
 #include "app/commands.h"
 #include "app/live_player.h"
 #include "app/player.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/gl/objects.h"
 

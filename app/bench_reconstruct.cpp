@@ -36,8 +36,8 @@
 #include "app/commands.h"
 #include "capture/rig.h"
 #include "capture/source.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
 #include "tracking/evaluation.h"
 #include "tracking/reconstruction.h"
 

@@ -20,8 +20,8 @@
 #include "app/bench_sfm.h"
 #include "capture/equirect_view.h"
 #include "capture/stitcher.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
 #include "engine/image/image_io.h"
 
 namespace odvr::app {

@@ -21,14 +21,15 @@
 #include "app/bench_common.h"
 #include "app/commands.h"
 #include "app/render_switches.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 #include "engine/image/ssim.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/render/triple_product_renderer.h"
 #include "engine/scene/gltf_scene.h"
+#include "engine/sphere/equirect.h"
 
 namespace odvr::app {
 namespace {
@@ -214,7 +215,7 @@ constexpr double kStreetCatcherAlbedo = 0.2;
 // `ground_bounce`, as the media references: the car sees Cycles' catcher below the horizon, not
 // the panorama's road (the rig's tilt, under 1°, is left in: the map's lower half is replaced).
 Reference LoadStreetFrame10(const fs::path& street, bool ground_bounce) {
-  const glm::dmat3 yup_from_zup(glm::dvec3(1, 0, 0), glm::dvec3(0, 0, -1), glm::dvec3(0, 1, 0));
+  const glm::dmat3 yup_from_zup = sphere::YupFromZup();
   const fs::path pose_path = street / "car_pose.json";
   std::ifstream f(pose_path);
   if (!f) throw Error(pose_path.string(), "cannot be read");

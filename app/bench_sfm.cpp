@@ -18,8 +18,9 @@
 #include <sstream>
 
 #include "app/bench_common.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/timing.h"
 
 namespace odvr::app {
 namespace {
@@ -68,9 +69,6 @@ const char* kPathsHeader = "method\tframe\tx\ty\tz";
 }  // namespace
 
 double RoundTo(double v, double per_unit) { return std::isfinite(v) ? std::round(v * per_unit) / per_unit : v; }
-double SecondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 std::string Num(double v, int digits) { return std::isfinite(v) ? fmt::format("{:.{}f}", v, digits) : "n/a"; }
 

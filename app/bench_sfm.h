@@ -19,6 +19,7 @@
 #include "app/bench_common.h"
 #include "capture/rig.h"
 #include "capture/source.h"
+#include "core/timing.h"
 #include "tracking/evaluation.h"
 #include "tracking/reconstruction.h"
 
@@ -60,7 +61,6 @@ struct Results {
 };
 
 double RoundTo(double v, double per_unit);
-double SecondsSince(std::chrono::steady_clock::time_point t0);
 std::string Num(double v, int digits);  // "n/a" for NaN
 
 // <stem>.tsv (rows), <stem>_stages.tsv, <stem>_paths.tsv in `dir`, atomically; and back.

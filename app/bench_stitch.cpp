@@ -36,8 +36,10 @@
 #include "app/commands.h"
 #include "capture/rig.h"
 #include "capture/stitcher.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/srgb.h"
+#include "core/timing.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 
@@ -79,15 +81,13 @@ struct Row {
 // computed from the rows in memory, say exactly what a reader recomputes from the TSV.
 double RoundTo(double v, double per_unit) { return std::round(v * per_unit) / per_unit; }
 
-double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
-
 cv::Mat ToBgr8(const sphere::EquirectImage& img) {
   cv::Mat out(img.height, img.width, CV_8UC3);
   for (int y = 0; y < img.height; ++y) {
     auto* row = out.ptr<cv::Vec3b>(y);
     for (int x = 0; x < img.width; ++x)
       for (int k = 0; k < 3; ++k)
-        row[x][2 - k] = static_cast<unsigned char>(std::lround(255.0f * image::LinearToSrgb(img.at(x, y)[k])));
+        row[x][2 - k] = static_cast<unsigned char>(std::lround(255.0f * LinearToSrgb(img.at(x, y)[k])));
   }
   return out;
 }

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 

@@ -1,6 +1,6 @@
 #include "app/car_look.h"
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 

@@ -12,7 +12,7 @@
 
 #include "capture/image_file.h"
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 

@@ -7,7 +7,7 @@
 #include <cstring>
 #include <initializer_list>
 
-#include "engine/core/atomic_file.h"
+#include "core/atomic_file.h"
 
 namespace odvr::app {
 namespace {

@@ -3,7 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "capture/equirect_view.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 

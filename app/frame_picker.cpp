@@ -5,7 +5,7 @@
 #include <glm/geometric.hpp>
 #include <numeric>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 

@@ -10,7 +10,8 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/timing.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/render/triple_product_renderer.h"
 #include "engine/scene/gltf_scene.h"
@@ -20,8 +21,6 @@ namespace odvr::app {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
-
 // The rig's own image folders (image_dir, relative to the rig file), replayed live.
 std::unique_ptr<capture::Source> OpenRigSource(const capture::Rig& rig, const std::string& rig_path) {
   std::vector<std::string> dirs;
@@ -209,7 +208,7 @@ LiveFrame LiveScene::Render(int width, int height, const AugmentedView& view) {
   out.car_position = car.position;
   const glm::dmat4 world_from_car = car_->WorldFromCar();
   const glm::dmat3 car_from_world = glm::transpose(glm::dmat3(world_from_car));
-  const double pi = sphere::kPi;
+  const double pi = kPi;
   const double az = view.yaw_deg * pi / 180;  // positive: right, toward +Z
   const double el = std::clamp(view.pitch_deg * pi / 180, -1.55, 1.55);
   const glm::dvec3 look(std::cos(el) * std::cos(az), std::sin(el), std::cos(el) * std::sin(az));

@@ -6,7 +6,7 @@
 #include <iostream>
 
 #include "app/commands.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 

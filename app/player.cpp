@@ -17,8 +17,9 @@
 #include "app/frame_decoder.h"
 #include "app/playback_clock.h"
 #include "app/window_input.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/timing.h"
 #include "engine/gl/context.h"
 #include "engine/render/panorama_renderer.h"
 
@@ -26,8 +27,6 @@ namespace odvr::app {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
-
 double Median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
@@ -130,7 +129,7 @@ PlayerReport RunWindow(const PlayerOptions& options) {
   std::vector<std::string> overlay;
   while (!glfwWindowShouldClose(w)) {
     glfwPollEvents();
-    const double dt = std::chrono::duration<double>(Clock::now() - previous).count();
+    const double dt = SecondsSince(previous);
     previous = Clock::now();
     PlaybackClock& clock = playback.clock();
     ViewController& view = playback.view();
@@ -195,8 +194,7 @@ PlayerReport RunWindow(const PlayerOptions& options) {
       imgui.Render();
     }
     ++report.frames_shown;
-    const bool quitting =
-        options.quit_after_s > 0 && std::chrono::duration<double>(Clock::now() - start).count() > options.quit_after_s;
+    const bool quitting = options.quit_after_s > 0 && SecondsSince(start) > options.quit_after_s;
     if (quitting && !options.screenshot.empty() && fb_w > 0 && fb_h > 0)
       WriteWindowScreenshot(options.screenshot, fb_w, fb_h);
     // A screenshot shows the frame the clock is on: while paused (a step, a seek) it waits for the

@@ -16,8 +16,10 @@
 #include "app/commands.h"
 #include "capture/libav_video_writer.h"
 #include "capture/source.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/srgb.h"
+#include "core/timing.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 
@@ -88,11 +90,11 @@ int RunExport(ExportCommand& c) {
       const AugmentedFrame f = scene.Render(width, height, {}, i > 0 ? dt : 0);
       for (std::size_t p = 0; p < f.image.pixel_count(); ++p)
         for (int ch = 0; ch < 3; ++ch) {
-          const float v = image::LinearToSrgb(std::clamp(f.image.rgb[3 * p + static_cast<std::size_t>(ch)], 0.f, 1.f));
+          const float v = LinearToSrgb(std::clamp(f.image.rgb[3 * p + static_cast<std::size_t>(ch)], 0.f, 1.f));
           bgr[3 * p + static_cast<std::size_t>(2 - ch)] = static_cast<std::uint8_t>(std::lround(255 * v));
         }
       writer.Write(cv::Mat(height, width, CV_8UC3, bgr.data()));
-      const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+      const double elapsed = SecondsSince(start);
       const double eta = elapsed / (i + 1) * (frames - i - 1);
       std::fprintf(stderr, "\rexport: frame %d/%d (view %d)  %.2f s/frame  ETA %.0f s   ", i + 1, frames, f.view_frame,
                    elapsed / (i + 1), eta);
@@ -101,7 +103,7 @@ int RunExport(ExportCommand& c) {
     writer.Finish();
     capture::CheckWrittenVideo(tmp, c.out, frames);
   });
-  const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+  const double elapsed = SecondsSince(start);
   if (c.json) {
     std::cout << nlohmann::json{{"output", c.out},    {"frames", frames},        {"size", {width, height}},
                                 {"fps", fps},         {"codec", encoder},        {"crf", c.crf},

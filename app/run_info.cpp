@@ -3,7 +3,7 @@
 
 #include "app/commands.h"
 #include "capture/library_versions.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "tracking/library_versions.h"
 

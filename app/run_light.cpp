@@ -9,7 +9,7 @@
 
 #include "app/commands.h"
 #include "app/transform_tuning.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_builder.h"

@@ -7,7 +7,7 @@
 #include "app/commands.h"
 #include "app/live_player.h"
 #include "app/player.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 namespace {

@@ -18,7 +18,7 @@
 #include "capture/equirect_view.h"
 #include "capture/rig.h"
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tracking/evaluation.h"
 #include "tracking/reconstruction.h"
 

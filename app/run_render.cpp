@@ -15,7 +15,8 @@
 #include "app/bench_common.h"
 #include "app/commands.h"
 #include "app/render_switches.h"
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/timing.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_builder.h"
@@ -128,14 +129,14 @@ int RunRender(const RenderCliOptions& o) {
     lo.detect_peaks = !o.no_peaks;
     lighting::LightingBuilder builder(lo);
     lighting_model = builder.Build(env);
-    lighting_ms = first_lighting_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    lighting_ms = first_lighting_ms = MsSince(t0);
     // Like the render's stages, the repeats time the steady state: the first build also makes
     // each level's overlap lists, which every later frame reuses.
     std::vector<double> steady;
     for (int i = 1; i < o.repeat; ++i) {
       const auto t = Clock::now();
       lighting_model = builder.Build(env);
-      steady.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t).count());
+      steady.push_back(MsSince(t));
     }
     if (!steady.empty()) lighting_ms = Median(std::move(steady));
   }

@@ -17,8 +17,9 @@
 #include "capture/rig.h"
 #include "capture/source.h"
 #include "capture/stitcher.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/srgb.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 
@@ -40,8 +41,7 @@ cv::Mat ToBgr8(const sphere::EquirectImage& img) {
     auto* row = out.ptr<cv::Vec3b>(y);
     for (int x = 0; x < img.width; ++x) {
       const float* p = img.at(x, y);
-      for (int k = 0; k < 3; ++k)
-        row[x][2 - k] = static_cast<unsigned char>(std::lround(255.0f * image::LinearToSrgb(p[k])));
+      for (int k = 0; k < 3; ++k) row[x][2 - k] = static_cast<unsigned char>(std::lround(255.0f * LinearToSrgb(p[k])));
     }
   }
   return out;

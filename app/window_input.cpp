@@ -17,8 +17,9 @@
 #include <opencv2/imgproc.hpp>
 #include <utility>
 
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/srgb.h"
 #include "engine/gl/objects.h"
 #include "engine/gl/shader_library.h"
 #include "engine/image/image_io.h"
@@ -96,7 +97,7 @@ void FramePresenter::Show(const sphere::EquirectImage& linear, int framebuffer_w
   static const std::vector<std::uint8_t> lut = [] {
     std::vector<std::uint8_t> l(4096);
     for (int i = 0; i < 4096; ++i)
-      l[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(std::lround(255 * image::LinearToSrgb(i / 4095.f)));
+      l[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(std::lround(255 * LinearToSrgb(i / 4095.f)));
     return l;
   }();
   std::vector<std::uint8_t> srgb(linear.rgb.size());

@@ -3,7 +3,7 @@
 #include <map>
 #include <mutex>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 #include "engine/sphere/resample.h"

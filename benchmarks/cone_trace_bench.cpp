@@ -15,7 +15,7 @@
 #include <random>
 #include <vector>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/lighting/sg.h"
 #include "engine/scene/gltf_scene.h"
 #include "engine/visibility/cones.h"

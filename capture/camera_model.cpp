@@ -6,13 +6,12 @@
 #include <cstdio>
 #include <limits>
 
-#include "engine/core/error.h"
+#include "core/constants.h"
+#include "core/error.h"
 #include "engine/sphere/equirect.h"
 
 namespace odvr::capture {
 namespace {
-
-constexpr double kPi = sphere::kPi;
 
 void CheckSize(int width, int height) {
   if (width <= 0 || height <= 0)

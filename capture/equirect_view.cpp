@@ -7,7 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "capture/libav_video.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

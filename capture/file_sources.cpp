@@ -10,7 +10,7 @@
 #include "capture/image_file.h"
 #include "capture/libav_video.h"
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <mutex>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 extern "C" {
 #include <libavcodec/avcodec.h>

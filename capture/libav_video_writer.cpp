@@ -4,7 +4,7 @@
 #include <string>
 
 #include "capture/libav_video.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 extern "C" {
 #include <libavcodec/avcodec.h>

@@ -1,5 +1,5 @@
 #pragma once
-#include "engine/core/library_versions.h"
+#include "engine/library_versions.h"
 
 namespace odvr {
 // libcamera, libv4l2 and libav (video files), which only capture links.

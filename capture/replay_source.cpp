@@ -7,7 +7,7 @@
 
 #include "capture/image_file.h"
 #include "capture/live_source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

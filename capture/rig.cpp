@@ -8,8 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

@@ -9,8 +9,10 @@
 #include <functional>
 
 #include "capture/stitcher_gpu.h"
-#include "engine/core/error.h"
-#include "engine/core/parallel.h"
+#include "core/error.h"
+#include "core/parallel.h"
+#include "core/srgb.h"
+#include "core/timing.h"
 #include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 
@@ -18,17 +20,6 @@ namespace odvr::capture {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
-
-const std::array<float, 256>& SrgbTable() {
-  static const std::array<float, 256> table = [] {
-    std::array<float, 256> t{};
-    for (int i = 0; i < 256; ++i) t[static_cast<std::size_t>(i)] = image::SrgbToLinear(i / 255.0f);
-    return t;
-  }();
-  return table;
-}
 
 // Four floats as one SIMD value (SSE on x86-64, NEON on ARM, through GCC/Clang vector
 // extensions): one pixel's RGB plus a spare lane, so a bilinear tap is one load.
@@ -154,11 +145,11 @@ StitchLut BuildStitchLut(const Rig& rig, const StitchOptions& options) {
       if (counts[p] >= 2) lut.gain_pixels.push_back(static_cast<std::uint32_t>(p));
     }
   // The output's pixel pitch against each camera's at its centre (radians per pixel).
-  const double output_pitch = 2 * sphere::kPi / lut.width;
+  const double output_pitch = 2 * kPi / lut.width;
   for (const auto& c : rig.cameras) {
     const CameraModel& m = c.model;
     const double pitch =
-        m.type() == CameraModelType::kEquirectangular ? 2 * sphere::kPi / m.width() : 1 / std::max(m.fx(), m.fy());
+        m.type() == CameraModelType::kEquirectangular ? 2 * kPi / m.width() : 1 / std::max(m.fx(), m.fy());
     const bool half = options.prefilter == StitchOptions::Prefilter::kOn ||
                       (options.prefilter == StitchOptions::Prefilter::kAuto && output_pitch > pitch);
     lut.level.push_back(half ? 1 : 0);
@@ -526,7 +517,7 @@ struct Stitcher::Impl {
   // Linearizes every present frame into `pixels`, at the level lut.level gives each camera, and
   // reads the gain samples on the way. Returns each frame's mean linear intensity (0 if missing).
   std::vector<double> Linearize(const std::vector<cv::Mat>& images) {
-    const auto& table = SrgbTable();
+    const auto& table = Srgb8ToLinearTable();
     const int n = rig.camera_count();
     // Clipped samples say nothing about exposure (the true value is unknown): marked negative.
     constexpr float kClipped = 0.98f;

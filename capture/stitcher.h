@@ -29,7 +29,7 @@
 
 #include "capture/frame.h"
 #include "capture/rig.h"
-#include "engine/core/parallel.h"
+#include "core/parallel.h"
 #include "engine/sphere/equirect_image.h"
 
 namespace odvr::capture {

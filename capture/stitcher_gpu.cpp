@@ -3,7 +3,9 @@
 #include <array>
 #include <chrono>
 
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/srgb.h"
+#include "core/timing.h"
 #include "engine/gl/objects.h"
 #include "engine/gl/shader_library.h"
 #include "engine/image/image_io.h"
@@ -11,7 +13,6 @@
 namespace odvr::capture {
 namespace {
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 }  // namespace
 
 struct GpuStitchPipeline::State {
@@ -59,8 +60,7 @@ GpuStitchPipeline::GpuStitchPipeline(const Rig& rig, const StitchLut& lut) : sta
   } else {
     s.entries.SetData(lut.entries);
   }
-  std::array<float, 256> table{};
-  for (int i = 0; i < 256; ++i) table[static_cast<std::size_t>(i)] = image::SrgbToLinear(i / 255.0f);
+  const std::array<float, 256>& table = Srgb8ToLinearTable();
   s.srgb_table.Allocate(sizeof table, table.data());
 
   GLuint id = 0;

@@ -14,7 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "capture/live_source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

@@ -1,7 +1,7 @@
 #include <string>
 
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 

@@ -1,5 +1,5 @@
 // glTF 2.0 models, binary (.glb) and text (.gltf): engine::scene::LoadGltfScene.
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/scene/gltf_scene.h"
 #include "fuzz/fuzz_input.h"
 

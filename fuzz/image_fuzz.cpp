@@ -3,7 +3,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "capture/image_file.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/image/image_io.h"
 #include "fuzz/fuzz_input.h"
 

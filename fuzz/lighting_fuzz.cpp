@@ -1,5 +1,5 @@
 // Lighting models (`odvr light --out`, read by `render --lighting`): lighting::SgLighting::Load.
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/lighting/sg_lighting.h"
 #include "fuzz/fuzz_input.h"
 

@@ -1,6 +1,6 @@
 // Rig calibrations (rig.json): capture::LoadRig.
 #include "capture/rig.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "fuzz/fuzz_input.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -1,6 +1,6 @@
 // Trajectories, as `play` and `export` read them: trajectory.json and TUM text
 // (tracking::LoadTrajectoryJson, tracking::LoadTrajectoryTum). Each input is read both ways.
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "fuzz/fuzz_input.h"
 #include "tracking/evaluation.h"
 

@@ -2,7 +2,7 @@
 // capture::ProbeVideo and capture::LibavVideoReader, reading the first frames, seeking back and
 // reading on, as the player does.
 #include "capture/libav_video.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "fuzz/fuzz_input.h"
 
 namespace {

@@ -10,7 +10,7 @@
 #include <limits>
 #include <memory>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::tracking {
 namespace {

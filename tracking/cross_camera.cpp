@@ -4,7 +4,7 @@
 #include <cmath>
 #include <opencv2/features2d.hpp>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::tracking {
 namespace {

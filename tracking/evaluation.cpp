@@ -10,7 +10,7 @@
 #include <set>
 #include <sstream>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::tracking {
 

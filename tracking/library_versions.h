@@ -1,5 +1,5 @@
 #pragma once
-#include "engine/core/library_versions.h"
+#include "engine/library_versions.h"
 
 namespace odvr {
 // Ceres, Eigen and OpenGV, which only tracking links.

@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::tracking {
 

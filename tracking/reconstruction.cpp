@@ -13,7 +13,8 @@
 #include <set>
 #include <unordered_map>
 
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/timing.h"
 #include "tracking/central_pose.h"
 #include "tracking/ransac.h"
 #include "tracking/triangulation.h"
@@ -23,8 +24,6 @@ namespace odvr::tracking {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
 
 std::string Fixed(double v, int digits = 2) {
   char buf[64];
@@ -156,7 +155,7 @@ class Reconstructor {
     if (callbacks_.progress) callbacks_.progress(stage, done, total);
   }
   void Stage(const std::string& name, Clock::time_point since, int inliers, const std::string& what) {
-    out_.stages.push_back({name, Seconds(since), inliers, what});
+    out_.stages.push_back({name, SecondsSince(since), inliers, what});
     Log(name + ": " + std::to_string(inliers) + " " + what + " (" + Fixed(out_.stages.back().seconds) + " s)");
   }
 
@@ -385,7 +384,7 @@ class Reconstructor {
           }
       }
     }
-    sum.seconds = Seconds(t0);
+    sum.seconds = SecondsSince(t0);
     if (!options_.trifocal) return;
     Stage("trifocal", t0, static_cast<int>(sum.observations_after),
           "track observations kept of " + std::to_string(sum.observations_before) + ", " +

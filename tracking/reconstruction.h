@@ -161,7 +161,7 @@ Reconstruction Reconstruct(const capture::Rig& rig, capture::Source& source, con
 
 // Writes into `dir` (created): trajectory.json, trajectory.tum, cameras.txt, images.txt,
 // points3D.txt (COLMAP text model), road_plane.json, summary.json: atomically as a set
-// (engine/core/atomic_file.h WriteTextFilesAtomically).
+// (core/atomic_file.h WriteTextFilesAtomically).
 // `extra_summary`, when not empty, is a JSON object merged into summary.json.
 void WriteReconstruction(const Reconstruction& r, const std::filesystem::path& dir,
                          const std::string& extra_summary_json = "");

@@ -9,8 +9,9 @@
 
 #include "capture/equirect_view.h"
 #include "capture/rig.h"
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/axes.h"
+#include "core/error.h"
 #include "tracking/reconstruction.h"
 
 namespace odvr::tracking {
@@ -26,10 +27,11 @@ nlohmann::json Rows(const Eigen::Matrix4d& m) {
 
 nlohmann::json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
-// C = [[1,0,0],[0,0,1],[0,-1,0]]: the datasets' Z-up world to odvr's Y-up one.
+// C = [[1,0,0],[0,0,1],[0,-1,0]] (core/axes.h): the datasets' Z-up world to odvr's Y-up one.
 Eigen::Matrix4d YupFromZup() {
   Eigen::Matrix4d c = Eigen::Matrix4d::Identity();
-  c.topLeftCorner<3, 3>() << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) c(r, k) = kYupFromZup[r][k];
   return c;
 }
 

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tracking/ransac.h"
 
 namespace odvr::tracking {

@@ -7,7 +7,7 @@
 #include <opencv2/video/tracking.hpp>
 #include <sstream>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::tracking {
 

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <array>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::gl {
 

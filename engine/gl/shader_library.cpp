@@ -7,7 +7,7 @@
 #include <regex>
 #include <sstream>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::gl {
 

@@ -8,19 +8,13 @@
 #include <cctype>
 #include <cmath>
 
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/srgb.h"
 
 namespace odvr::image {
 
 namespace OIIO = OIIO_NAMESPACE;
-
-float SrgbToLinear(float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); }
-
-float LinearToSrgb(float v) {
-  v = std::clamp(v, 0.0f, 1.0f);
-  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
-}
 
 std::pair<long, long> SanitizePixels(sphere::EquirectImage* image) {
   long bad = 0, negative = 0;
@@ -103,9 +97,7 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
   const int out_rows_per_block = static_cast<int>(std::clamp<std::size_t>(
       options.read_block_bytes / (row_bytes * factor), 1, static_cast<std::size_t>(out.height)));
   std::vector<float> rows(static_cast<std::size_t>(spec.width) * factor * out_rows_per_block * nch);
-  std::array<float, 256> lut{};
-  if (spec.format.basetype == OIIO::TypeDesc::UINT8)
-    for (int i = 0; i < 256; ++i) lut[static_cast<std::size_t>(i)] = SrgbToLinear(i / 255.0f);
+  const std::array<float, 256>& lut = Srgb8ToLinearTable();
   const float scale = 1.0f / static_cast<float>(factor * factor);
   for (int block_row = 0; block_row < out.height; block_row += out_rows_per_block) {
     const int block_rows = std::min(out_rows_per_block, out.height - block_row);

@@ -52,8 +52,4 @@ std::vector<float> LoadAlpha(const std::filesystem::path& path, int* width, int*
 // Written atomically. EXR keeps linear float; PNG/JPEG are sRGB-encoded 8-bit (clamped).
 void SaveImage(const std::filesystem::path& path, const sphere::EquirectImage& image);
 
-// sRGB transfer function, both ways.
-float SrgbToLinear(float v);
-float LinearToSrgb(float v);
-
 }  // namespace odvr::image

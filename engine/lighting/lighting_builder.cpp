@@ -3,7 +3,7 @@
 #include <chrono>
 #include <cmath>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/lighting/residual_transform_gpu.h"
 
 namespace odvr::lighting {

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 
-#include "engine/core/error.h"
-#include "engine/core/parallel.h"
+#include "core/error.h"
+#include "core/parallel.h"
 #include "engine/sphere/equirect.h"
 #include "engine/sphere/healpix.h"
 #include "engine/sphere/resample.h"
@@ -91,7 +91,7 @@ double ClampedHeight(double h, double lambda) {
   const double s = std::sqrt(std::max(0.0, 1 - h * h)) / std::sqrt(lambda);
   if (s <= 0) return std::max(0.0, h);
   const double a = h / s;
-  return h * 0.5 * std::erfc(-a / std::sqrt(2.0)) + s * std::exp(-0.5 * a * a) / std::sqrt(2 * sphere::kPi);
+  return h * 0.5 * std::erfc(-a / std::sqrt(2.0)) + s * std::exp(-0.5 * a * a) / std::sqrt(2 * kPi);
 }
 
 }  // namespace
@@ -184,7 +184,7 @@ Convolutions LightingErrorEvaluator::ConvolveModel(const SgLighting& model, cons
   const auto grid_conv = Convolve(
       grid, dirs, [](double c) { return CosineKernel(c); }, 0.0);
   for (std::size_t i = 0; i < dirs.size(); ++i)
-    out.diffuse[i] += grid_conv[i] + glm::dvec3(model.constant) * sphere::kPi;  // ∫ max(0, n·ω) dω = π
+    out.diffuse[i] += grid_conv[i] + glm::dvec3(model.constant) * kPi;  // ∫ max(0, n·ω) dω = π
   return out;
 }
 

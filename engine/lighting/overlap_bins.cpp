@@ -6,8 +6,8 @@
 #include <glm/geometric.hpp>
 #include <mutex>
 
-#include "engine/core/error.h"
-#include "engine/core/parallel.h"
+#include "core/error.h"
+#include "core/parallel.h"
 #include "engine/lighting/sg.h"
 #include "engine/sphere/equirect.h"
 #include "engine/sphere/healpix.h"
@@ -48,7 +48,7 @@ double OverlapBinLevel::mean_list_length() const {
 std::size_t OverlapBinLevel::bytes() const { return sizeof(int) * (begin.size() + srbfs.size()); }
 
 glm::dvec3 OverlapBinDirection(int t, int p, int n) {
-  const double theta = sphere::kPi * t / n, phi = sphere::kPi * p / n;
+  const double theta = kPi * t / n, phi = kPi * p / n;
   return {std::sin(theta) * std::cos(phi), std::cos(theta), -std::sin(theta) * std::sin(phi)};
 }
 
@@ -94,28 +94,28 @@ OverlapBins::OverlapBins(OverlapBinOptions options) : options_(std::move(options
     OverlapBinLevel level;
     level.lambda = lambdas[k];
     const double spacing = HalfValueAngleForLambda(level.lambda) / 2;
-    level.n = std::max(4, static_cast<int>(std::ceil(sphere::kPi / spacing)));
+    level.n = std::max(4, static_cast<int>(std::ceil(kPi / spacing)));
     level.max_level = k + 1 < lambdas.size()
                           ? DepthFor(lambdas[k + 1], options_.lighting_levels, options_.min_retention)
                           : options_.lighting_levels - 1;
     // Any direction lies within this angle of its nearest node: half the diagonal of a cell at
     // the equator is (π/n)/√2; φ steps only shrink towards the poles.
-    const double cell_radius = 0.75 * sphere::kPi / level.n;
+    const double cell_radius = 0.75 * kPi / level.n;
     // The overlap falls monotonically with the angle, so per lighting level one angle bounds it:
     // found by bisection, then each test is a dot product.
     std::vector<double> cos_limit(static_cast<std::size_t>(options_.lighting_levels), 1.0);
     for (int s = 0; s <= level.max_level; ++s) {
       const double ls = sphere::Healpix(s).Lambda();
-      double lo = 0, hi = sphere::kPi;
+      double lo = 0, hi = kPi;
       if (LogRelativeOverlap(ls, level.lambda, -1.0) >= log_cutoff) {
-        lo = sphere::kPi;
+        lo = kPi;
       } else {
         for (int it = 0; it < 60; ++it) {
           const double mid = 0.5 * (lo + hi);
           (LogRelativeOverlap(ls, level.lambda, std::cos(mid)) >= log_cutoff ? lo : hi) = mid;
         }
       }
-      cos_limit[static_cast<std::size_t>(s)] = std::cos(std::min(sphere::kPi, lo + cell_radius));
+      cos_limit[static_cast<std::size_t>(s)] = std::cos(std::min(kPi, lo + cell_radius));
     }
     const int bins = level.bins();
     std::vector<std::vector<int>> lists(static_cast<std::size_t>(bins));
@@ -155,9 +155,9 @@ int OverlapBins::BinOf(const OverlapBinLevel& level, const glm::dvec3& direction
   const glm::dvec3 d = glm::normalize(direction);
   const double theta = std::acos(std::clamp(d.y, -1.0, 1.0));
   double phi = std::atan2(-d.z, d.x);
-  if (phi < 0) phi += 2 * sphere::kPi;
-  const int t = std::clamp(static_cast<int>(std::lround(theta * level.n / sphere::kPi)), 0, level.n);
-  const int p = static_cast<int>(std::lround(phi * level.n / sphere::kPi)) % (2 * level.n);
+  if (phi < 0) phi += 2 * kPi;
+  const int t = std::clamp(static_cast<int>(std::lround(theta * level.n / kPi)), 0, level.n);
+  const int p = static_cast<int>(std::lround(phi * level.n / kPi)) % (2 * level.n);
   return t * 2 * level.n + p;
 }
 

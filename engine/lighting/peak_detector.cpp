@@ -8,9 +8,9 @@
 #include <glm/geometric.hpp>
 #include <numeric>
 
-#include "engine/core/error.h"
-#include "engine/core/float4.h"
-#include "engine/core/parallel.h"
+#include "core/error.h"
+#include "core/float4.h"
+#include "core/parallel.h"
 #include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 
@@ -41,11 +41,11 @@ class PixelDirections {
   PixelDirections() = default;
   PixelDirections(int w, int h) : w_(w), h_(h) {
     for (int row = 0; row < h; ++row) {
-      const double lat = sphere::kPi / 2 - sphere::kPi * (row + 0.5) / h;
+      const double lat = kPi / 2 - kPi * (row + 0.5) / h;
       rows_.emplace_back(std::cos(lat), std::sin(lat));
     }
     for (int col = 0; col < w; ++col) {
-      const double lon = sphere::kPi * (1.0 - 2.0 * (col + 0.5) / w);
+      const double lon = kPi * (1.0 - 2.0 * (col + 0.5) / w);
       cols_.emplace_back(std::cos(lon), std::sin(lon));
     }
   }
@@ -262,7 +262,7 @@ FrameScan Scan(const sphere::EquirectImage& frame, const std::vector<double>& da
     lo1 = lo1 < b.lo1 ? lo1 : b.lo1;
     lo2 = lo2 < b.lo2 ? lo2 : b.lo2;
   }
-  s.mean /= 4 * sphere::kPi;
+  s.mean /= 4 * kPi;
   float lo[kLanes], lowest = 0, highest = 0;
   Store12(lo, lo0, lo1, lo2);
   for (int j = 0; j < kLanes; ++j) lowest = lowest < lo[j] ? lowest : lo[j];
@@ -452,8 +452,8 @@ bool CouldBeAnLdrSun(const std::vector<int>& pixels, const glm::vec3& ring, int 
   for (int p : pixels) sum += direction(p);
   if (glm::length(sum) < 1e-12) return false;
   const glm::dvec3 axis = glm::normalize(sum);
-  if (axis.y < std::sin(options.ldr_min_elevation_deg * sphere::kPi / 180)) return false;  // below the horizon
-  const double cos_radius = std::cos(options.ldr_max_sun_radius_deg * sphere::kPi / 180);
+  if (axis.y < std::sin(options.ldr_min_elevation_deg * kPi / 180)) return false;  // below the horizon
+  const double cos_radius = std::cos(options.ldr_max_sun_radius_deg * kPi / 180);
   for (int p : pixels)
     if (glm::dot(direction(p), axis) < cos_radius) return false;  // not compact
   const float ring_level[3] = {ring.x, ring.y, ring.z};
@@ -617,7 +617,7 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
   for (const auto& [e, i] : rough) ranked.push_back(std::move(components[i]));
   components = std::move(ranked);
 
-  const double pixel_angle = sphere::kPi / h;
+  const double pixel_angle = kPi / h;
   struct Candidate {
     DetectedPeak peak;
     std::vector<int> pixels;
@@ -629,7 +629,7 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
     if (pixels.empty()) continue;
     double area = 0;
     for (int p : pixels) area += da[static_cast<std::size_t>(p / w)];
-    if (area > options.max_area_fraction * 4 * sphere::kPi) continue;  // a bright wall, not a light
+    if (area > options.max_area_fraction * 4 * kPi) continue;  // a bright wall, not a light
     // The surrounding level: mean of the one-pixel ring around the component.
     for (int p : pixels) in.Set(p, 1);
     glm::dvec3 ring(0);

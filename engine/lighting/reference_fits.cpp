@@ -7,8 +7,8 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 
-#include "engine/core/error.h"
-#include "engine/core/parallel.h"
+#include "core/error.h"
+#include "core/parallel.h"
 #include "engine/lighting/residual_transform.h"
 #include "engine/lighting/sg.h"
 #include "engine/sphere/equirect.h"
@@ -37,7 +37,7 @@ void Legendre(int order, double x, std::vector<double>* out) {
       // (l−m)!/(l+m)! as a product, so it stays finite for the orders used here.
       double ratio = 1;
       for (int k = l - m + 1; k <= l + m; ++k) ratio /= k;
-      (*out)[idx(l, m)] = std::sqrt((2 * l + 1) / (4 * sphere::kPi) * ratio) * p[idx(l, m)];
+      (*out)[idx(l, m)] = std::sqrt((2 * l + 1) / (4 * kPi) * ratio) * p[idx(l, m)];
     }
 }
 
@@ -136,14 +136,14 @@ ShModel ProjectSphericalHarmonics(const sphere::EquirectImage& image, int order)
   std::vector<double> cos_m(static_cast<std::size_t>((order + 1) * w)), sin_m(cos_m.size());
   for (int m = 0; m <= order; ++m)
     for (int col = 0; col < w; ++col) {
-      const double lon = sphere::kPi * (1 - 2 * (col + 0.5) / w);  // φ of equirect.h
+      const double lon = kPi * (1 - 2 * (col + 0.5) / w);  // φ of equirect.h
       cos_m[static_cast<std::size_t>(m * w + col)] = std::cos(m * lon);
       sin_m[static_cast<std::size_t>(m * w + col)] = std::sin(m * lon);
     }
   std::vector<double> legendre;
   std::vector<glm::dvec3> acc(static_cast<std::size_t>(count), glm::dvec3(0));
   for (int row = 0; row < image.height; ++row) {
-    const double lat = sphere::kPi / 2 - sphere::kPi * (row + 0.5) / image.height;
+    const double lat = kPi / 2 - kPi * (row + 0.5) / image.height;
     const double da = sphere::EquirectPixelSolidAngle(row, w, image.height);
     Legendre(order, std::sin(lat), &legendre);
     for (int m = 0; m <= order; ++m) {
@@ -198,10 +198,10 @@ sphere::EquirectImage ShModel::Reconstruct(int width, int height) const {
       [&](long begin, long end) {
         std::vector<double> legendre;
         for (long row = begin; row < end; ++row) {
-          const double lat = sphere::kPi / 2 - sphere::kPi * (static_cast<double>(row) + 0.5) / height;
+          const double lat = kPi / 2 - kPi * (static_cast<double>(row) + 0.5) / height;
           Legendre(order, std::sin(lat), &legendre);
           for (int col = 0; col < width; ++col) {
-            const double phi = sphere::kPi * (1 - 2 * (col + 0.5) / width);
+            const double phi = kPi * (1 - 2 * (col + 0.5) / width);
             glm::dvec3 sum(0);
             for (int m = 0; m <= order; ++m) {
               const double cm = std::cos(m * phi), sm = std::sin(m * phi);

@@ -9,8 +9,9 @@
 #include <glm/geometric.hpp>
 #include <type_traits>
 
-#include "engine/core/error.h"
-#include "engine/core/float4.h"
+#include "core/error.h"
+#include "core/float4.h"
+#include "core/timing.h"
 #include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 #include "engine/sphere/healpix.h"
@@ -20,8 +21,6 @@ namespace odvr::lighting {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
-
 // A NaN, Inf or negative value anywhere. Fixed-length lanes without an early exit, which GCC's
 // -O2 vectorizes; std::any_of branched on every value of the frame. With the serial small passes
 // below, the transform to 2 levels at 1024 wide went from 1.47 to 0.86 ms (`odvr bench light`,
@@ -305,7 +304,7 @@ glm::dvec3 MeanOf(const sphere::EquirectImage& image) {
       sum += da * glm::dvec3(p[0], p[1], p[2]);
     }
   }
-  return sum / (4 * sphere::kPi);
+  return sum / (4 * kPi);
 }
 
 // out = a − b (`out` neither of them).
@@ -666,8 +665,8 @@ AbsAndSquareSums SphereAbsAndSquareSums(const sphere::EquirectImage& image, Thre
   return total;
 }
 
-double MeanAbsOf(const AbsAndSquareSums& s) { return s.abs / 3.0 / (4 * sphere::kPi); }
-double RmsOf(const AbsAndSquareSums& s) { return std::sqrt(s.square / 3.0 / (4 * sphere::kPi)); }
+double MeanAbsOf(const AbsAndSquareSums& s) { return s.abs / 3.0 / (4 * kPi); }
+double RmsOf(const AbsAndSquareSums& s) { return std::sqrt(s.square / 3.0 / (4 * kPi)); }
 
 }  // namespace
 

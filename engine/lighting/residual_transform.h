@@ -31,7 +31,7 @@
 #include <tuple>
 #include <vector>
 
-#include "engine/core/parallel.h"
+#include "core/parallel.h"
 #include "engine/lighting/sg_lighting.h"
 #include "engine/sphere/equirect_image.h"
 

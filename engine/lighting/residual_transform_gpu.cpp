@@ -10,7 +10,8 @@
 #include <glm/vec4.hpp>
 #include <string>
 
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/timing.h"
 #include "engine/gl/context.h"
 #include "engine/gl/shader_library.h"
 #include "engine/sphere/equirect.h"
@@ -19,8 +20,6 @@ namespace odvr::lighting {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
-
 // Slots of the totals buffer (lighting_stats_total.comp): 8 doubles each; the frame's, then per
 // level the residue entering it and the one it leaves.
 constexpr int kMaxLevels = 6;
@@ -45,8 +44,8 @@ struct SphereSums {
   double abs = 0;     // Σ (|r|+|g|+|b|) dA
   double sq = 0;      // Σ (r²+g²+b²) dA
   // The same measures as MeanAbsRadiance and RmsRadiance.
-  double MeanAbs() const { return abs / 3.0 / (4 * sphere::kPi); }
-  double Rms() const { return std::sqrt(sq / 3.0 / (4 * sphere::kPi)); }
+  double MeanAbs() const { return abs / 3.0 / (4 * kPi); }
+  double Rms() const { return std::sqrt(sq / 3.0 / (4 * kPi)); }
 };
 
 SphereSums SumsOf(const std::vector<double>& totals, int slot) {
@@ -375,12 +374,12 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
     return model;
   }
   // The constant term: the solid-angle-weighted mean (an SG with λ = 0).
-  if (options_.constant_term) model.constant = glm::vec3(frame_sums.rgb / (4 * sphere::kPi));
+  if (options_.constant_term) model.constant = glm::vec3(frame_sums.rgb / (4 * kPi));
 
   const float keep = static_cast<float>(options_.keep_threshold * report.mean_radiance);
   // The stop rule's mean |residue| < threshold × mean radiance, as a bound on Σ (|r|+|g|+|b|) dA,
   // so that the gate on the GPU and the replay below compare the same doubles.
-  const double abs_limit = options_.stop_threshold * report.mean_radiance * 3.0 * (4 * sphere::kPi);
+  const double abs_limit = options_.stop_threshold * report.mean_radiance * 3.0 * (4 * kPi);
   glClearNamedBufferData(flags_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
   const std::size_t totals_bytes = sizeof(double) * kSlotDoubles * kSlots;
   std::vector<std::size_t> mu_offset;  // each level's amplitudes in results_

@@ -21,7 +21,7 @@
 #include <tuple>
 #include <vector>
 
-#include "engine/core/parallel.h"
+#include "core/parallel.h"
 #include "engine/gl/objects.h"
 #include "engine/lighting/residual_transform.h"
 

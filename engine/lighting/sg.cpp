@@ -3,6 +3,8 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 
+#include "core/constants.h"
+
 namespace odvr::lighting {
 
 double Evaluate(const Sg& g, const glm::dvec3& w) {
@@ -21,7 +23,6 @@ Sg Product(const Sg& a, const Sg& b) {
 
 namespace {
 double IntegralFromSums(double mu, double big_lambda, double r) {
-  constexpr double kPi = 3.14159265358979323846;
   if (r < 1e-4) return 4 * kPi * mu * std::exp(-big_lambda) * (1 + r * r / 6);
   // 2π μ (e^{r−Λ} − e^{−r−Λ}) / r = 2π μ e^{r−Λ} (1 − e^{−2r}) / r; -expm1 keeps small r exact.
   return 2 * kPi * mu * std::exp(r - big_lambda) * (-std::expm1(-2 * r)) / r;

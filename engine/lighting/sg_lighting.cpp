@@ -8,8 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "engine/core/atomic_file.h"
-#include "engine/core/error.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
 #include "engine/sphere/equirect.h"
 #include "engine/sphere/healpix.h"
 
@@ -53,7 +53,7 @@ const std::vector<glm::dvec2>& ColumnLongitudes(int w) {
   if (table_width != w) {
     table.resize(static_cast<std::size_t>(w));
     for (int col = 0; col < w; ++col) {
-      const double lon = sphere::kPi * (1.0 - 2.0 * (col + 0.5) / w);
+      const double lon = kPi * (1.0 - 2.0 * (col + 0.5) / w);
       table[static_cast<std::size_t>(col)] = {std::cos(lon), std::sin(lon)};
     }
     table_width = w;
@@ -73,7 +73,7 @@ void AddSgToImage(const RgbSg& g, sphere::EquirectImage* image, double cutoff) {
   const sphere::EquirectCap cap(g.axis, 1.0 + std::log(cutoff) / g.lambda, w, h);
   const std::vector<glm::dvec2>& longitudes = ColumnLongitudes(w);
   for (int row = cap.first_row(); row <= cap.last_row(); ++row) {
-    const double lat = sphere::kPi / 2 - sphere::kPi * (row + 0.5) / h;
+    const double lat = kPi / 2 - kPi * (row + 0.5) / h;
     const double cos_lat = std::cos(lat), sin_lat = std::sin(lat);
     const auto [start, n] = cap.Columns(row);
     for (int k = 0; k < n; ++k) {

@@ -4,13 +4,13 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 
+#include "core/constants.h"
+
 namespace odvr::material {
 
 using lighting::Sg;
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 glm::dvec3 Reflect(const glm::dvec3& w, const glm::dvec3& about) { return 2.0 * glm::dot(w, about) * about - w; }
 

@@ -3,7 +3,7 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <glm/matrix.hpp>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/shader_library.h"
 
 namespace odvr::render {

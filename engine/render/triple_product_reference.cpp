@@ -7,7 +7,7 @@
 #include <glm/geometric.hpp>
 #include <limits>
 
-#include "engine/core/parallel.h"
+#include "core/parallel.h"
 #include "engine/lighting/sg.h"
 #include "engine/render/triple_product_internal.h"
 

@@ -14,7 +14,9 @@
 #include <optional>
 #include <sstream>
 
-#include "engine/core/error.h"
+#include "core/constants.h"
+#include "core/error.h"
+#include "core/timing.h"
 #include "engine/gl/context.h"
 #include "engine/gl/objects.h"
 #include "engine/gl/shader_library.h"
@@ -29,8 +31,6 @@ namespace odvr::render {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // render_shade.comp's material-term types (brdf_lobes.glsl).
 enum TermType : int {
@@ -412,7 +412,7 @@ PinholeCamera PinholeCamera::LookAt(const glm::dvec3& position, const glm::dvec3
   return c;
 }
 
-double PinholeCamera::focal_px() const { return 0.5 * height / std::tan(0.5 * vfov_deg * sphere::kPi / 180.0); }
+double PinholeCamera::focal_px() const { return 0.5 * height / std::tan(0.5 * vfov_deg * kPi / 180.0); }
 
 glm::dvec3 PinholeCamera::Ray(double x, double y) const {
   const double f = focal_px();
@@ -782,9 +782,9 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
     const double a2 = a * a;
     const material::GgxSgFit fit = material::GgxSg(a);
     table[2 * i] = glm::vec4(static_cast<float>(material::NdfSgLambda(a) * a2), 0, 0, 0);
-    table[2 * i + 1] = glm::vec4(static_cast<float>(fit.lambda[0] * a2), static_cast<float>(fit.lambda[1] * a2),
-                                 static_cast<float>(fit.amplitude[0] * sphere::kPi * a2),
-                                 static_cast<float>(fit.amplitude[1] * sphere::kPi * a2));
+    table[2 * i + 1] =
+        glm::vec4(static_cast<float>(fit.lambda[0] * a2), static_cast<float>(fit.lambda[1] * a2),
+                  static_cast<float>(fit.amplitude[0] * kPi * a2), static_cast<float>(fit.amplitude[1] * kPi * a2));
   }
   im.ndf_table = MakeBuffer(table);
   // The clamped cosine's two tables interleaved, so that the shader reads both with one vec2.
@@ -1205,7 +1205,6 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
         // exact ground lit fraction divides by (render_mc.comp's groundLitExact).
         const sphere::EquirectImage& env = im.environment;
         const glm::dmat3 world_from_env = glm::transpose(im.lighting.env_from_world);
-        constexpr double kPi = 3.14159265358979323846;
         glm::dvec3 e(0);
         for (int y = 0; y < env.height; ++y) {
           const double lat = 0.5 * kPi - kPi * (y + 0.5) / env.height;

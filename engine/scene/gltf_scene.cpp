@@ -14,7 +14,7 @@
 #include <map>
 #include <type_traits>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::scene {
 

@@ -13,12 +13,22 @@
 //   latitude  lat = pi/2 - pi (row + 0.5) / H      row 0 touches the zenith (+Y), the last row the nadir;
 //   direction = (cos lat cos lon, sin lat, -cos lat sin lon).
 // The solid angle of a pixel is exact: (2 pi / W) (sin lat_top - sin lat_bottom); it sums to 4 pi.
+#include <glm/mat3x3.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
+#include "core/axes.h"
+#include "core/constants.h"
+
 namespace odvr::sphere {
 
-constexpr double kPi = 3.14159265358979323846;
+// The Z-up world of the datasets and Blender in this frame (core/axes.h), for glm.
+inline glm::dmat3 YupFromZup() {
+  glm::dmat3 c;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) c[k][r] = kYupFromZup[r][k];  // glm is column-major
+  return c;
+}
 
 // Direction of continuous image coordinates (x, y) in pixels, where pixel centres sit at +0.5.
 glm::dvec3 EquirectDirection(double x, double y, int width, int height);

@@ -5,8 +5,8 @@
 #include <string>
 #include <utility>
 
-#include "engine/core/error.h"
-#include "engine/core/float4.h"
+#include "core/error.h"
+#include "core/float4.h"
 #include "engine/sphere/equirect.h"
 
 namespace odvr::sphere {

@@ -7,7 +7,7 @@
 #include <memory>
 #include <mutex>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::sphere {
 namespace {

@@ -6,8 +6,8 @@
 #include <cstring>
 #include <vector>
 
-#include "engine/core/error.h"
-#include "engine/core/parallel.h"
+#include "core/error.h"
+#include "core/parallel.h"
 #include "engine/sphere/equirect.h"
 
 namespace odvr::sphere {

@@ -7,7 +7,7 @@
 #include <numeric>
 #include <string>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::visibility {
 namespace {

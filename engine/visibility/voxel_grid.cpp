@@ -6,7 +6,7 @@
 #include <glm/geometric.hpp>
 #include <string>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/scene/gltf_scene.h"
 
 namespace odvr::visibility {

@@ -6,7 +6,7 @@
 #include <glm/vec4.hpp>
 #include <string>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/gl/shader_library.h"
 

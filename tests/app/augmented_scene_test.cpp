@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 
 namespace odvr::app {

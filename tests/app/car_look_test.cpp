@@ -10,7 +10,7 @@
 #include <variant>
 
 #include "app/augmented_scene.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/scene/gltf_scene.h"
 #include "tests/engine/render/render_test_scenes.h"

@@ -9,7 +9,7 @@
 
 #include "app/augmented_scene.h"
 #include "app/live_scene.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 namespace {

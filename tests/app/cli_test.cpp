@@ -9,7 +9,7 @@
 #include <string>
 
 #include "app/commands.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tests/app/run_odvr.h"
 #include "tests/error_message.h"
 

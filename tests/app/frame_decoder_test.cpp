@@ -6,7 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::app {
 namespace {

@@ -9,7 +9,8 @@
 #include <vector>
 
 #include "app/window_input.h"
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/srgb.h"
 #include "engine/gl/context.h"
 #include "engine/gl/objects.h"
 #include "engine/image/image_io.h"
@@ -60,10 +61,10 @@ TEST(FramePresenterGL, TextureAndImagePathsAgreeWithinOneStep) {
     return static_cast<int>(px[(static_cast<std::size_t>(gl_row) * w + x) * 4 + c]);
   };
   EXPECT_EQ(at(from_texture, 10, h - 1, 1), 0);
-  const int bottom_green = static_cast<int>(std::lround(255 * image::LinearToSrgb(0.7f * exposure)));
+  const int bottom_green = static_cast<int>(std::lround(255 * LinearToSrgb(0.7f * exposure)));
   EXPECT_NEAR(at(from_texture, 10, 0, 1), bottom_green, 1);
   // The exposure is applied: red at x = 40 is encoded from 0.9·40/63·1.5.
-  EXPECT_NEAR(at(from_texture, 40, 5, 0), std::lround(255 * image::LinearToSrgb(0.9f * 40 / 63 * exposure)), 1);
+  EXPECT_NEAR(at(from_texture, 40, 5, 0), std::lround(255 * LinearToSrgb(0.9f * 40 / 63 * exposure)), 1);
   gl::Texture none{gl::NoCreate};
   EXPECT_THROW(presenter.Show(none, 1.f, w, h, 0), Error);
 }

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "core/constants.h"
 #include "tests/app/run_odvr.h"
 
 namespace odvr::app {
@@ -25,7 +26,6 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using odvr::testing::ReadText;
 using odvr::testing::ScratchDir;
-constexpr double kPi = 3.14159265358979323846;
 
 std::string MissingTool() {
   for (const char* tool : {"xvfb-run", "xdotool"})

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/sg_lighting.h"

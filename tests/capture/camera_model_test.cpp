@@ -8,7 +8,7 @@
 #include <opencv2/calib3d.hpp>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/sphere/equirect.h"
 
 namespace odvr::capture {
@@ -169,15 +169,15 @@ TEST(CameraModel, StreetRigFisheyeSeesBehindItsImagePlaneAtTheCorners) {
   Eigen::Vector3d b;
   ASSERT_TRUE(m.Unproject({-0.5, -0.5}, &b));
   EXPECT_LT(b.z(), 0);
-  EXPECT_NEAR(std::acos(b.z()) * 180 / sphere::kPi, 100.0, 0.05);
+  EXPECT_NEAR(std::acos(b.z()) * 180 / kPi, 100.0, 0.05);
   EXPECT_LT(b.x(), 0);  // top-left: left (-x) and up (-y) in the OpenCV camera frame
   EXPECT_LT(b.y(), 0);
   ASSERT_TRUE(m.Unproject({239.5, 319.5}, &b));
   EXPECT_NEAR((b - Eigen::Vector3d(0, 0, 1)).norm(), 0, 1e-12);
   // 60 deg to the right lands at r = f * pi / 3.
   Eigen::Vector2d px;
-  ASSERT_TRUE(m.Project({std::sin(sphere::kPi / 3), 0, std::cos(sphere::kPi / 3)}, &px));
-  EXPECT_NEAR(px.x(), 239.5 + 229.18311805232932 * sphere::kPi / 3, 1e-9);
+  ASSERT_TRUE(m.Project({std::sin(kPi / 3), 0, std::cos(kPi / 3)}, &px));
+  EXPECT_NEAR(px.x(), 239.5 + 229.18311805232932 * kPi / 3, 1e-9);
 }
 
 TEST(CameraModel, FoldingDistortionLimitsTheField) {

@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

@@ -8,7 +8,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

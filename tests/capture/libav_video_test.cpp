@@ -17,7 +17,8 @@
 #include <sstream>
 
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/timing.h"
 
 namespace odvr::capture {
 namespace {
@@ -30,10 +31,6 @@ const fs::path kVideo360 = fs::path(ODVR_SHARED_DIR) / "data/video360";
 
 bool SameImage(const cv::Mat& a, const cv::Mat& b) {
   return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0;
-}
-
-double MsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
 class LibavVideo : public ::testing::Test {

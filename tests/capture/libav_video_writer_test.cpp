@@ -8,7 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "capture/libav_video.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tests/scratch_dir.h"
 
 namespace odvr {

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::capture {
 namespace {

@@ -10,7 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tests/error_message.h"
 
 namespace odvr::capture {

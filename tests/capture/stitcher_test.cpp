@@ -14,7 +14,8 @@
 #include <random>
 #include <tuple>
 
-#include "engine/core/error.h"
+#include "core/error.h"
+#include "core/srgb.h"
 #include "engine/image/image_io.h"
 #include "engine/sphere/equirect.h"
 #include "tests/engine/gl/gl_test_context.h"
@@ -51,7 +52,7 @@ Rig SyntheticRig(int width = 120, int height = 160) {
   Rig rig;
   const double f = 229.18311805232932 * width / 480.0;
   for (int c = 0; c < 6; ++c) {
-    const double yaw = c * sphere::kPi / 3;
+    const double yaw = c * kPi / 3;
     const Eigen::Vector3d forward(std::cos(yaw), std::sin(yaw), 0), up(0, 0, 1);
     const Eigen::Vector3d right = forward.cross(up);
     Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
@@ -76,8 +77,7 @@ cv::Mat RenderCamera(const Rig& rig, int c, double gain) {
       const Eigen::Vector3d o = OdvrFromRig(cam.rig_from_cam.topLeftCorner<3, 3>() * b);
       const Eigen::Vector3f rgb = World({o.x(), o.y(), o.z()}) * static_cast<float>(gain);
       auto& px = img.at<cv::Vec3b>(y, x);
-      for (int k = 0; k < 3; ++k)
-        px[2 - k] = static_cast<unsigned char>(std::lround(255 * image::LinearToSrgb(rgb[k])));
+      for (int k = 0; k < 3; ++k) px[2 - k] = static_cast<unsigned char>(std::lround(255 * LinearToSrgb(rgb[k])));
     }
   return img;
 }
@@ -364,7 +364,7 @@ TEST(Stitcher, CameraMeansAreExactAtEitherLevelWithOddImageSizes) {
       double sum = 0;
       for (int y = 0; y < images[c].rows; ++y)
         for (int x = 0; x < images[c].cols; ++x)
-          for (int k = 0; k < 3; ++k) sum += image::SrgbToLinear(images[c].at<cv::Vec3b>(y, x)[k] / 255.0f);
+          for (int k = 0; k < 3; ++k) sum += SrgbToLinear(images[c].at<cv::Vec3b>(y, x)[k] / 255.0f);
       const double want = sum / (3.0 * images[c].total());
       EXPECT_NEAR(f.report.camera_mean[c], want, 1e-5 * want) << "camera " << c;
     }
@@ -404,8 +404,7 @@ cv::Mat ToBgr8ForTest(const sphere::EquirectImage& img) {
   for (int y = 0; y < img.height; ++y)
     for (int x = 0; x < img.width; ++x)
       for (int k = 0; k < 3; ++k)
-        out.at<cv::Vec3b>(y, x)[2 - k] =
-            static_cast<unsigned char>(std::lround(255 * image::LinearToSrgb(img.at(x, y)[k])));
+        out.at<cv::Vec3b>(y, x)[2 - k] = static_cast<unsigned char>(std::lround(255 * LinearToSrgb(img.at(x, y)[k])));
   return out;
 }
 
@@ -418,7 +417,7 @@ double PsnrSrgbOverValid(const StitchedFrame& f, const cv::Mat& truth_bgr) {
       if (!f.valid[static_cast<std::size_t>(row) * f.image.width + col]) continue;
       const auto& t = truth_bgr.at<cv::Vec3b>(row, col);
       for (int k = 0; k < 3; ++k) {
-        const double s = std::lround(255 * image::LinearToSrgb(f.image.at(col, row)[k]));
+        const double s = std::lround(255 * LinearToSrgb(f.image.at(col, row)[k]));
         se += std::pow(s - t[2 - k], 2);
       }
       ++n;

@@ -13,7 +13,7 @@
 #include <random>
 
 #include "capture/camera_model.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::tracking {
 namespace {

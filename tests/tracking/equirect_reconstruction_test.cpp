@@ -17,7 +17,7 @@
 
 #include "capture/equirect_view.h"
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tracking/evaluation.h"
 #include "tracking/reconstruction.h"
 

@@ -11,7 +11,7 @@
 #include <iostream>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::tracking {
 namespace {

@@ -14,7 +14,7 @@
 
 #include "capture/rig.h"
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tracking/evaluation.h"
 #include "tracking/reconstruction.h"
 

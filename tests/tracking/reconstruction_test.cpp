@@ -13,7 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "capture/source.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tracking/evaluation.h"
 
 namespace odvr::tracking {

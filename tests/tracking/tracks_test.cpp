@@ -12,7 +12,7 @@
 #include <random>
 
 #include "capture/rig.h"
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::tracking {
 namespace {

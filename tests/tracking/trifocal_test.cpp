@@ -9,7 +9,7 @@
 #include <iostream>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tracking/ransac.h"
 
 namespace odvr::tracking {

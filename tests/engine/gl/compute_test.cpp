@@ -38,7 +38,7 @@ TEST_F(ComputeGL, EquirectDirectionsShaderMatchesCpuConvention) {
   }
   EXPECT_LT(max_dir_err, 1e-5);
   EXPECT_LT(max_sa_err, 1e-6);
-  EXPECT_NEAR(total_solid_angle, 4 * sphere::kPi, 1e-4);
+  EXPECT_NEAR(total_solid_angle, 4 * kPi, 1e-4);
 }
 
 }  // namespace

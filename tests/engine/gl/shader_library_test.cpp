@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tests/engine/gl/gl_test_context.h"
 
 namespace odvr::gl {

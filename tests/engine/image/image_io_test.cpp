@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::image {
 namespace {

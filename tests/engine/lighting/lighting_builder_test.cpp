@@ -13,7 +13,7 @@
 
 #include <algorithm>
 #include <cstdio>
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_errors.h"
 #include "engine/sphere/resample.h"

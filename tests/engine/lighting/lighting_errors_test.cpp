@@ -19,7 +19,7 @@ namespace {
 double NumericalDiffuse(const glm::dvec3& n, const glm::dvec3& axis, double lambda) {
   constexpr int kWidth = 4096, kHeight = 2048;
   // Only the rows within 25° of the axis' latitude: beyond, G < 1e-12.
-  const double lat = std::asin(axis.y) * 180 / sphere::kPi;
+  const double lat = std::asin(axis.y) * 180 / kPi;
   const int row0 = std::max(0, static_cast<int>((90 - lat - 25) / 180 * kHeight));
   const int row1 = std::min(kHeight, static_cast<int>((90 - lat + 25) / 180 * kHeight) + 1);
   double sum = 0;
@@ -46,7 +46,7 @@ TEST(LightingErrors, SharpLobesAreConvolvedWithTheCosineAtTheirMeanCosine) {
   const glm::dvec3 side = glm::normalize(glm::cross(axis, glm::dvec3(0.3, 0.5, 0.8)));
   std::vector<glm::dvec3> dirs;
   for (double deg : {0.0, 40.0, 70.0}) {
-    const double a = deg * sphere::kPi / 180;
+    const double a = deg * kPi / 180;
     dirs.push_back(std::cos(a) * axis + std::sin(a) * side);
   }
   const Convolutions conv = LightingErrorEvaluator::ConvolveModel(model, dirs);
@@ -67,10 +67,10 @@ TEST(LightingErrors, SharpLobesAtTheCosinesHorizonAreNotCutInHalf) {
     model.levels.push_back({level, hp.Lambda(), {7}, {glm::vec3(1)}});
     const glm::dvec3 axis = hp.centre(7);
     const glm::dvec3 side = glm::normalize(glm::cross(axis, glm::dvec3(0.3, 0.5, 0.8)));
-    const double sigma_deg = 180 / sphere::kPi / std::sqrt(hp.Lambda());
+    const double sigma_deg = 180 / kPi / std::sqrt(hp.Lambda());
     std::vector<glm::dvec3> dirs;
     for (double k : {-3.0, -1.0, 0.0, 0.5, 1.0, 2.0, 4.0}) {
-      const double a = (90 - k * sigma_deg) * sphere::kPi / 180;  // the axis k σ above the horizon
+      const double a = (90 - k * sigma_deg) * kPi / 180;  // the axis k σ above the horizon
       dirs.push_back(std::cos(a) * axis + std::sin(a) * side);
     }
     const Convolutions conv = LightingErrorEvaluator::ConvolveModel(model, dirs);
@@ -93,7 +93,7 @@ TEST(LightingErrors, ASunIsConvolvedAtItsOwnPixelsNotAtAGridCell) {
   const glm::dvec3 side = glm::normalize(glm::cross(sun, glm::dvec3(0, 1, 0)));
   std::vector<glm::dvec3> dirs;
   for (double deg : {0.0, 5.0, 30.0, 60.0}) {
-    const double a = deg * sphere::kPi / 180;
+    const double a = deg * kPi / 180;
     dirs.push_back(std::cos(a) * sun + std::sin(a) * side);
   }
   const Convolutions conv = LightingErrorEvaluator::ConvolveImage(image, dirs);
@@ -126,7 +126,7 @@ TEST(LightingErrors, AModelsOwnImageIsJudgedFinerThanTheDeepestLevelsErrors) {
     return (state >> 8) / 16777216.0;
   };
   for (int i = 0; i < 300; ++i) {
-    const double z = 2 * uniform() - 1, phi = 2 * sphere::kPi * uniform(), r = std::sqrt(1 - z * z);
+    const double z = 2 * uniform() - 1, phi = 2 * kPi * uniform(), r = std::sqrt(1 - z * z);
     const double lambda = std::array{22.55, 91.5, 364.51, 1449.29, 5797.0}[static_cast<std::size_t>(i % 5)];
     const float a = static_cast<float>(2 * uniform() - 0.5);
     model.peaks.push_back(

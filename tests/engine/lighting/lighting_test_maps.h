@@ -36,7 +36,7 @@ inline void AddDisc(sphere::EquirectImage* img, glm::dvec3 axis, double radius_r
 }
 
 inline double AngleDeg(const glm::dvec3& a, const glm::dvec3& b) {
-  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) * 180.0 / sphere::kPi;
+  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) * 180.0 / kPi;
 }
 
 }  // namespace odvr::testing

@@ -7,7 +7,7 @@
 #include <glm/geometric.hpp>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/lighting/sg.h"
 #include "engine/sphere/healpix.h"
 

@@ -11,8 +11,8 @@
 #include <random>
 #include <set>
 
-#include "engine/core/error.h"
-#include "engine/core/parallel.h"
+#include "core/error.h"
+#include "core/parallel.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/lighting/lighting_errors.h"
@@ -28,7 +28,7 @@ using odvr::testing::SkyMap;
 
 // Unit direction at longitude/latitude in degrees, by the convention of engine/sphere/equirect.h.
 glm::dvec3 Dir(double lon_deg, double lat_deg) {
-  const double lon = lon_deg * sphere::kPi / 180, lat = lat_deg * sphere::kPi / 180;
+  const double lon = lon_deg * kPi / 180, lat = lat_deg * kPi / 180;
   return {std::cos(lat) * std::cos(lon), std::sin(lat), -std::cos(lat) * std::sin(lon)};
 }
 
@@ -74,7 +74,7 @@ TEST(PeakDetector, SunAHundredThousandTimesTheSkyIsRecoveredAndTakenOut) {
   const sphere::EquirectImage sky = SkyMap(512, 256);
   sphere::EquirectImage frame = sky;
   const glm::dvec3 sun = Dir(37, 41);
-  AddDisc(&frame, sun, 1.5 * sphere::kPi / 180, 1e5f);
+  AddDisc(&frame, sun, 1.5 * kPi / 180, 1e5f);
   const PeakDetection d = DetectPeaks(frame);
   EXPECT_FALSE(d.ldr);
   ASSERT_EQ(d.peaks.size(), 1u);
@@ -103,7 +103,7 @@ TEST(PeakDetector, SunAHundredThousandTimesTheSkyIsRecoveredAndTakenOut) {
 void ExpectOneRoundPeakAt(const glm::dvec3& centre, double radius_deg) {
   const sphere::EquirectImage sky = SkyMap(512, 256);
   sphere::EquirectImage frame = sky;
-  AddDisc(&frame, centre, radius_deg * sphere::kPi / 180, 5e3f);
+  AddDisc(&frame, centre, radius_deg * kPi / 180, 5e3f);
   const PeakDetection d = DetectPeaks(frame);
   ASSERT_EQ(d.peaks.size(), 1u);
   ASSERT_TRUE(AllFinite(d.peaks[0]));
@@ -212,7 +212,7 @@ TEST(PeakDetector, ElongatedSourceIsSplitIntoTwoOrThreeSgs) {
   sphere::EquirectImage frame = sky;
   // A strip light: a row of touching discs along the equator, 10° long, 2° wide (compact enough
   // as a whole for min_lambda: one SG of λ ~800).
-  for (double lon = -4; lon <= 4; lon += 0.5) AddDisc(&frame, Dir(lon, 10), 1 * sphere::kPi / 180, 2e3f);
+  for (double lon = -4; lon <= 4; lon += 0.5) AddDisc(&frame, Dir(lon, 10), 1 * kPi / 180, 2e3f);
   const PeakDetection d = DetectPeaks(frame);
   ASSERT_EQ(d.peaks.size(), 1u);
   const DetectedPeak& p = d.peaks[0];
@@ -222,8 +222,7 @@ TEST(PeakDetector, ElongatedSourceIsSplitIntoTwoOrThreeSgs) {
   // The SGs spread along the strip, not on top of each other, and all lie on it.
   double spread = 0;
   for (const auto& g : p.sgs) {
-    const glm::dvec2 lonlat(std::atan2(-g.axis.z, g.axis.x) * 180 / sphere::kPi,
-                            std::asin(g.axis.y) * 180 / sphere::kPi);
+    const glm::dvec2 lonlat(std::atan2(-g.axis.z, g.axis.x) * 180 / kPi, std::asin(g.axis.y) * 180 / kPi);
     EXPECT_NEAR(lonlat.y, 10, 1.5);
     EXPECT_LT(std::abs(lonlat.x), 5);
     for (const auto& h : p.sgs) spread = std::max(spread, AngleDeg(g.axis, h.axis));
@@ -284,9 +283,9 @@ TEST(PeakDetector, CandidateBlocksFindExactlyTheWholeFramesComponents) {
     float* p = frame.at(col(rng), row(rng));
     p[0] = p[1] = p[2] = level(rng);
   }
-  AddDisc(&frame, Dir(180, 0), 3 * sphere::kPi / 180, 2.f);
-  AddDisc(&frame, Dir(0, 84), 4 * sphere::kPi / 180, 2.f);
-  AddDisc(&frame, Dir(90, -84), 4 * sphere::kPi / 180, 2.f);
+  AddDisc(&frame, Dir(180, 0), 3 * kPi / 180, 2.f);
+  AddDisc(&frame, Dir(0, 84), 4 * kPi / 180, 2.f);
+  AddDisc(&frame, Dir(90, -84), 4 * kPi / 180, 2.f);
   // Runs of row 0 and of row 124 apart from each other: one component each, through its pole.
   for (const int c : {10, 11, 130, 200})
     for (const int r : {0, 124}) std::fill_n(frame.at(c, r), 3, 2.f);
@@ -294,7 +293,7 @@ TEST(PeakDetector, CandidateBlocksFindExactlyTheWholeFramesComponents) {
   // component of thousands of pixels, sorted by the counting passes (small ones by std::sort),
   // whose pole row is joined once however many of its pixels the fill reaches.
   sphere::EquirectImage capped = frame;
-  AddDisc(&capped, Dir(180, 70), 22 * sphere::kPi / 180, 2.f);
+  AddDisc(&capped, Dir(180, 70), 22 * kPi / 180, 2.f);
   for (const auto* f : {&frame, &capped})
     for (const bool ldr : {false, true}) {
       const double threshold = ldr ? 0.98 : 1.0;
@@ -319,7 +318,7 @@ TEST(PeakDetector, CandidateBlocksFindExactlyTheWholeFramesComponents) {
 sphere::EquirectImage LdrSky(const glm::dvec3& sun) {
   sphere::EquirectImage frame = SkyMap(512, 256);
   for (float& v : frame.rgb) v *= 0.6f;
-  AddDisc(&frame, sun, 2 * sphere::kPi / 180, 1.f);
+  AddDisc(&frame, sun, 2 * kPi / 180, 1.f);
   return frame;
 }
 
@@ -346,7 +345,7 @@ TEST(PeakDetector, ResidueAndPeaksKeepTheFramesEnergyWhenTheRingOutshinesAChanne
   sphere::EquirectImage frame(256, 128);
   for (float& v : frame.rgb) v = 0.1f;
   const glm::dvec3 centre = Dir(40, 10);
-  const double radius = 5 * sphere::kPi / 128;  // five pixels
+  const double radius = 5 * kPi / 128;  // five pixels
   // Lit from a ring of blue (luminance 5.2, under the threshold of ~9) around a yellow core
   // (luminance 93) whose blue is far below the ring's.
   for (int row = 0; row < frame.height; ++row)
@@ -356,7 +355,7 @@ TEST(PeakDetector, ResidueAndPeaksKeepTheFramesEnergyWhenTheRingOutshinesAChanne
       float* p = frame.at(col, row);
       if (a < radius) {
         p[0] = p[1] = 100, p[2] = 2;
-      } else if (a < radius + 2.5 * sphere::kPi / 128) {
+      } else if (a < radius + 2.5 * kPi / 128) {
         p[0] = p[1] = 1, p[2] = 60;
       }
     }
@@ -380,8 +379,8 @@ TEST(PeakDetector, GlowOnlyAFewTimesItsSurroundingsIsNoPeak) {
   for (const float core : {20.f, 60.f}) {
     sphere::EquirectImage frame(256, 128, 0.1f);
     const glm::dvec3 centre = Dir(-30, 20);
-    AddDisc(&frame, centre, 15 * sphere::kPi / 180, 3.f);
-    AddDisc(&frame, centre, 5 * sphere::kPi / 180, core);
+    AddDisc(&frame, centre, 15 * kPi / 180, 3.f);
+    AddDisc(&frame, centre, 5 * kPi / 180, core);
     const PeakDetection d = DetectPeaks(frame);
     EXPECT_LT(d.threshold, core) << "the core is over the threshold";
     EXPECT_GT(d.threshold, 3.0) << "the surroundings are not";
@@ -395,8 +394,8 @@ TEST(PeakDetector, GlowOnlyAFewTimesItsSurroundingsIsNoPeak) {
 TEST(PeakDetector, BroadBrightBlobStaysInTheHierarchyWhileASunIsStillAPeak) {
   sphere::EquirectImage frame(512, 256, 0.1f);
   const glm::dvec3 blob = Dir(-60, 10), sun = Dir(70, 30);
-  AddDisc(&frame, blob, 8 * sphere::kPi / 180, 60.f);  // contrast 600, 0.06 sr
-  AddDisc(&frame, sun, 0.6 * sphere::kPi / 180, 2e4f);
+  AddDisc(&frame, blob, 8 * kPi / 180, 60.f);  // contrast 600, 0.06 sr
+  AddDisc(&frame, sun, 0.6 * kPi / 180, 2e4f);
   const PeakDetection d = DetectPeaks(frame);
   ASSERT_EQ(d.peaks.size(), 1u);
   EXPECT_LT(AngleDeg(PeakAxis(d.peaks[0]), sun), 0.5);
@@ -434,7 +433,7 @@ TEST(PeakDetector, ClippedLdrSunStillYieldsAPeakFromTheSkyPrior) {
     EXPECT_NEAR(ModelEnergy(p)[ch], defaults.ldr_sun_to_sky_ratio * sky_irradiance[ch], 0.01 * ModelEnergy(p)[ch]);
     EXPECT_NEAR(p.energy[ch], ModelEnergy(p)[ch], 1e-3 * p.energy[ch]);
   }
-  const double clipped_energy = 2 * sphere::kPi * (1 - std::cos(2 * sphere::kPi / 180));
+  const double clipped_energy = 2 * kPi * (1 - std::cos(2 * kPi / 180));
   EXPECT_GT(p.energy.y, 100 * clipped_energy);
 
   // The rule is linear in the prior.
@@ -462,13 +461,13 @@ TEST(PeakDetector, ClippedLdrPixelsAreASunOnlyWhereASunCanBe) {
   sphere::EquirectImage lines = room();
   EXPECT_EQ(DetectPeaks(lines).peaks.size(), 0u) << "white strips";
   sphere::EquirectImage below = room();
-  AddDisc(&below, Dir(40, -30), 3 * sphere::kPi / 180, 1.f);
+  AddDisc(&below, Dir(40, -30), 3 * kPi / 180, 1.f);
   EXPECT_EQ(DetectPeaks(below).peaks.size(), 0u) << "a clipped disc below the horizon";
   sphere::EquirectImage blown = room();
-  AddDisc(&blown, Dir(40, 40), 35 * sphere::kPi / 180, 1.f);
+  AddDisc(&blown, Dir(40, 40), 35 * kPi / 180, 1.f);
   EXPECT_EQ(DetectPeaks(blown).peaks.size(), 0u) << "a blown-out area 70° across";
   sphere::EquirectImage sun = room();
-  AddDisc(&sun, Dir(40, 30), 3 * sphere::kPi / 180, 1.f);
+  AddDisc(&sun, Dir(40, 30), 3 * kPi / 180, 1.f);
   const PeakDetection d = DetectPeaks(sun);
   ASSERT_EQ(d.peaks.size(), 1u);
   EXPECT_TRUE(d.peaks[0].estimated_from_clipped_ldr);

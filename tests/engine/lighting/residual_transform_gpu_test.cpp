@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/lighting/residual_transform.h"

@@ -8,7 +8,7 @@
 #include <string>
 #include <tuple>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/image/image_io.h"
 #include "engine/lighting/lighting_errors.h"
 #include "engine/lighting/reference_fits.h"
@@ -289,7 +289,7 @@ TEST(ResidualTransform, PartitionProjectionConservesEnergyAtEveryLevel) {
     o.keep_threshold = 0;
     ResidualTransform t(o);
     const SgLighting m = t.Run(frame);
-    double model_energy = 4 * sphere::kPi * m.constant.x, frame_energy = 0;
+    double model_energy = 4 * kPi * m.constant.x, frame_energy = 0;
     for (const auto& g : m.ToSgs())
       if (g.lambda > 0) model_energy += g.amplitude.x * Integral(Sg{g.axis, g.lambda, 1});
     for (int row = 0; row < 64; ++row)

@@ -6,10 +6,10 @@
 #include <glm/geometric.hpp>
 #include <random>
 
+#include "core/constants.h"
+
 namespace odvr::lighting {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // ∫ f over the sphere by quadrature in (cos θ, φ) around `pole`, with cos θ sampled densely near
 // the pole: sharp lobes (λ up to 1e4, width ~0.01 rad) need it. Midpoint rule in u = 1 − cos θ on

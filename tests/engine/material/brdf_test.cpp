@@ -9,13 +9,13 @@
 #include <string>
 #include <vector>
 
+#include "core/constants.h"
+
 namespace odvr::material {
 namespace {
 
 using lighting::RgbSg;
 using lighting::Sg;
-
-constexpr double kPi = 3.14159265358979323846;
 
 // ∫ f over the sphere in (u = 1 − cos θ, φ) around `pole`: u on a geometric grid from 1e-9 to 2
 // (dense near the pole, where a λ = 10⁴ lobe is 0.01 rad wide), midpoint rule in both.

@@ -20,7 +20,7 @@
 #include <limits>
 #include <numbers>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/gl/objects.h"
 #include "engine/gl/shader_library.h"

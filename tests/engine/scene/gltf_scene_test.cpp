@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr::scene {
 namespace {

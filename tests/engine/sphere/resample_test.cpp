@@ -9,7 +9,7 @@
 #include <glm/geometric.hpp>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/sphere/equirect.h"
 
 namespace odvr::sphere {

@@ -10,7 +10,7 @@
 #include <glm/geometric.hpp>
 #include <numbers>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/visibility/voxel_grid.h"
 #include "tests/engine/visibility/test_meshes.h"
 

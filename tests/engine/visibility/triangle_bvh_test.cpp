@@ -5,7 +5,7 @@
 #include <glm/geometric.hpp>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tests/engine/visibility/test_meshes.h"
 
 namespace odvr::visibility {

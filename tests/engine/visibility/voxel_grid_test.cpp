@@ -12,7 +12,7 @@
 #include <queue>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "tests/engine/visibility/test_meshes.h"
 
 namespace odvr::visibility {

@@ -19,7 +19,7 @@
 #include <glm/geometric.hpp>
 #include <random>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 #include "engine/scene/gltf_scene.h"
 #include "tests/engine/gl/gl_test_context.h"
 #include "tests/engine/visibility/test_meshes.h"

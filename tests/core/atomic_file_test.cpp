@@ -1,4 +1,4 @@
-#include "engine/core/atomic_file.h"
+#include "core/atomic_file.h"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr {
 namespace {

@@ -1,4 +1,4 @@
-#include "engine/core/atomic_file.h"
+#include "core/atomic_file.h"
 
 #include <pthread.h>
 #include <signal.h>
@@ -10,7 +10,7 @@
 #include <fstream>
 #include <system_error>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr {
 namespace {

@@ -1,11 +1,11 @@
-#include "engine/core/parallel.h"
+#include "core/parallel.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <string>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr {
 

@@ -1,4 +1,4 @@
-#include "engine/core/parallel.h"
+#include "core/parallel.h"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 #include <thread>
 #include <vector>
 
-#include "engine/core/error.h"
+#include "core/error.h"
 
 namespace odvr {
 namespace {

@@ -1,4 +1,4 @@
-#include "engine/core/library_versions.h"
+#include "engine/library_versions.h"
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
