@@ -1,13 +1,18 @@
 #include "capture/image_file.h"
 
+#include <OpenImageIO/imageio.h>
 #include <algorithm>
 #include <fstream>
 #include <iterator>
+
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <vector>
 
 namespace odvr::capture {
 namespace {
+
+namespace OIIO = OIIO_NAMESPACE;
 
 std::vector<unsigned char> ReadBytes(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -26,11 +31,28 @@ bool JpegBytesEndEarly(const std::vector<unsigned char>& bytes) {
   return std::search(last_scan, bytes.end(), std::begin(end_of_image), std::end(end_of_image)) == bytes.end();
 }
 
+// The width x height a file's header claims, read by OpenImageIO without decoding a pixel; none
+// when it cannot tell (OpenCV may still read the file).
+std::optional<long long> HeaderPixels(const std::filesystem::path& path) {
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) {
+    (void)OIIO::geterror();  // clears the message this thread would otherwise keep
+    return std::nullopt;
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  return static_cast<long long>(spec.width) * spec.height;
+}
+
 }  // namespace
 
 bool JpegEndsEarly(const std::filesystem::path& path) { return JpegBytesEndEarly(ReadBytes(path)); }
 
-cv::Mat ReadImageFile(const std::filesystem::path& path, int flags, std::string* problem) {
+cv::Mat ReadImageFile(const std::filesystem::path& path, int flags, std::string* problem, long long max_pixels) {
+  if (const auto pixels = HeaderPixels(path); pixels && *pixels > max_pixels) {
+    *problem = "its header claims " + std::to_string(*pixels) + " pixels, more than the " + std::to_string(max_pixels) +
+               " a frame may have";
+    return {};
+  }
   // The file is read once: the check and the decoder see the same bytes.
   const std::vector<unsigned char> bytes = ReadBytes(path);
   cv::Mat image = bytes.empty() ? cv::Mat() : cv::imdecode(bytes, flags);

@@ -16,6 +16,11 @@ namespace odvr::image {
 
 namespace OIIO = OIIO_NAMESPACE;
 
+namespace {
+// The widest file read (LoadOptions::max_pixels says why there is a limit).
+constexpr int kMaxWidth = 65536;
+}  // namespace
+
 std::pair<long, long> SanitizePixels(sphere::EquirectImage* image) {
   long bad = 0, negative = 0;
   for (std::size_t p = 0; p < image->pixel_count(); ++p) {
@@ -75,8 +80,10 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
   if (options.require_equirect && spec.width != 2 * spec.height)
     throw Error(name, "is " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
                           ": an equirectangular frame must be twice as wide as high");
-  if (static_cast<long long>(spec.width) * spec.height > (1LL << 31))
-    throw Error(name, "is absurdly large (" + std::to_string(spec.width) + "x" + std::to_string(spec.height) + ")");
+  if (static_cast<long long>(spec.width) * spec.height > options.max_pixels || spec.width > kMaxWidth)
+    throw Error(name, "is " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                          ": larger than the limit of " + std::to_string(options.max_pixels) + " pixels and " +
+                          std::to_string(kMaxWidth) + " wide");
 
   int factor = 1;
   while (spec.width / factor > options.max_width) factor *= 2;
@@ -91,7 +98,8 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
   r.linearized_from_srgb = !is_float && colorspace != "Linear" && colorspace != "linear";
 
   sphere::EquirectImage out(spec.width / factor, spec.height / factor);
-  const int nch = spec.nchannels;
+  // Only the colour channels are read: a file may declare any number of others.
+  const int nch = std::min(spec.nchannels, 3);
   // A block of rows per read (LoadOptions::read_block_bytes), whole output rows of it.
   const std::size_t row_bytes = static_cast<std::size_t>(spec.width) * nch * sizeof(float);
   const int out_rows_per_block = static_cast<int>(std::clamp<std::size_t>(
@@ -146,8 +154,10 @@ std::vector<float> LoadAlpha(const std::filesystem::path& path, int* width, int*
   auto in = OIIO::ImageInput::open(name);
   if (!in) throw Error(name, "cannot read: not an image OpenImageIO can read");
   const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || static_cast<long long>(spec.width) * spec.height > (1LL << 31))
-    throw Error(name, "empty or absurdly large image");
+  if (spec.width <= 0 || spec.height <= 0 ||
+      static_cast<long long>(spec.width) * spec.height > LoadOptions{}.max_pixels)
+    throw Error(name,
+                "empty or too large an image (" + std::to_string(spec.width) + "x" + std::to_string(spec.height) + ")");
   *width = spec.width;
   *height = spec.height;
   std::vector<float> alpha(static_cast<std::size_t>(spec.width) * spec.height, 1.f);

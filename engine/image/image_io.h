@@ -26,6 +26,11 @@ struct LoadOptions {
   // of 1 row, 256 KB, 1, 4 and 32 MB, 1 MB was the fastest on two of three files, within 2 % on
   // the third (a PNG); a 1024-wide frame in one block read 2.8x (EXR) and 3.6x (PNG) its time.
   std::size_t read_block_bytes = std::size_t{1} << 20;
+  // Larger files are refused from their header, before any pixel is read: 2^28 pixels (a 23k x 11k
+  // panorama, twice the widest consumer 360° frame) at most, and 65536 wide, which bounds one
+  // block of downsampled input rows. A 200 kB compressed file can claim a 16k x 8k image that
+  // decodes for a minute; a caller that needs less sets less.
+  long long max_pixels = 1LL << 28;
 };
 
 struct LoadReport {

@@ -56,6 +56,17 @@ TEST(ImageFile, ProgressiveJpegsAndOtherFormatsAreJudgedRight) {
   EXPECT_EQ(problem, "unreadable image");
 }
 
+TEST(ImageFile, AHeaderClaimingMorePixelsThanAllowedIsRefusedUndecoded) {
+  const ScratchDir scratch("odvr_image_file");
+  const fs::path png = scratch.dir / "a.png";
+  ASSERT_TRUE(cv::imwrite(png.string(), Noise(64, 32)));
+  std::string problem;
+  EXPECT_TRUE(ReadImageFile(png, cv::IMREAD_COLOR, &problem, 64 * 32 - 1).empty());
+  EXPECT_EQ(problem, "its header claims 2048 pixels, more than the 2047 a frame may have");
+  problem.clear();
+  EXPECT_EQ(ReadImageFile(png, cv::IMREAD_COLOR, &problem, 64 * 32).size(), cv::Size(64, 32)) << problem;
+}
+
 TEST(ImageFile, ACameraJpegWithItsExifThumbnailIsWholeAndItsCutIsNot) {
   // A GoPro still carries a thumbnail with its own scan and end marker near the file's start.
   const fs::path camera = fs::path(ODVR_SHARED_DIR) / "data/rig_fusion/5_2k/directory/BK/GPBK7152_img1.jpg";
