@@ -8,6 +8,11 @@
 
 namespace odvr::app {
 
+// Where a bench writes its table, TSV and plot unless --out says: a folder in the working
+// directory. The committed pages are regenerated only by naming them (--out docs/benchmarks), so
+// a run on a busy laptop never replaces them by accident.
+inline constexpr const char* kBenchOutDir = "odvr-bench";
+
 double Median(std::vector<double> values);
 
 // CPU model and core count, for the header of a benchmark table.

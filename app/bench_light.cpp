@@ -57,7 +57,7 @@ struct BenchLightOptions {
   // are within 1 % of their errors projected at full width on sky, park, sunset and bridge; at
   // 128 the diffuse error grows 3-12 % (bridge: 3x).
   int sh_width = 256;
-  std::string out_dir = "docs/benchmarks";
+  std::string out_dir = kBenchOutDir;
   bool report_only = false;
   lighting::ResidualTransformOptions transform;  // the tuning flags (AddTransformTuning)
 };
@@ -566,10 +566,11 @@ CommandFn AddBenchLight(CLI::App* sub) {
   sub->add_option("--repeats", o->repeats, "Timed runs per configuration (the median is kept)")
       ->check(CLI::Range(1, 100));
   sub->add_flag("--gpu", o->gpu, "Also time the GPU path (needs an OpenGL 4.5 context)");
-  sub->add_flag("!--no-least-squares", o->least_squares, "Skip the least-squares optimum (slow)");
+  AddSetFlag(sub, "--no-least-squares", &o->least_squares, false, "Skip the least-squares optimum (slow)");
   sub->add_option("--sh-width", o->sh_width, "Width of the grid SH projects the frame on (resampled, timed)")
       ->check(CLI::Range(16, 8192));
-  sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
+  sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go (docs/benchmarks: the committed pages)")
+      ->capture_default_str();
   AddTransformTuning(sub, &o->transform);
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchLight(*o); };

@@ -26,7 +26,7 @@ struct BenchPlayerOptions {
   std::string size = "1280x720";
   int frames = 8;
   std::string drive = "W:2s,A:1s";
-  std::string out = "docs/benchmarks/player.md";
+  std::string out = std::string(kBenchOutDir) + "/player.md";
   int levels = 4, voxels = 64;
   int shading_rate = PlayerOptions{}.shading_rate;
   bool live = false;
@@ -98,6 +98,8 @@ int RunBenchPlayer(const BenchPlayerOptions& b) {
         "shadow and the car over it. Frames: "
      << r.frames_shown << " (" << r.frames_shown - 1 << " timed).\n";
   md << ExistingLiveSection(b.out);
+  if (const auto folder = std::filesystem::path(b.out).parent_path(); !folder.empty())
+    std::filesystem::create_directories(folder);
   WriteTextAtomically(b.out, md.str());
   std::cout << md.str();
   return 0;
@@ -189,6 +191,8 @@ int RunBenchLive(const BenchPlayerOptions& b, const std::string& gl_renderer) {
   std::ifstream in(b.out);
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (const auto at = text.find(kLiveHeading); at != std::string::npos) text.resize(at);
+  if (const auto folder = std::filesystem::path(b.out).parent_path(); !folder.empty())
+    std::filesystem::create_directories(folder);
   WriteTextAtomically(b.out, text + md.str());
   std::cout << md.str();
   return 0;
@@ -208,7 +212,8 @@ CommandFn AddBenchPlayer(CLI::App* sub) {
   sub->add_option("--shading-rate", b->shading_rate, "The car's shading rate (1: every pixel, 2: per smooth 2x2 block)")
       ->check(CLI::IsMember({1, 2}))
       ->capture_default_str();
-  sub->add_option("--out", b->out, "Markdown table")->capture_default_str();
+  sub->add_option("--out", b->out, "Markdown table (docs/benchmarks/player.md: the committed page)")
+      ->capture_default_str();
   return [b] { return RunBenchPlayer(*b); };
 }
 

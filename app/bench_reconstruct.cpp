@@ -60,7 +60,7 @@ struct BenchReconstructOptions {
   int crf = 23, track_width = 1024;
   long clip_frames = 60;
   std::string colmap = "colmap";
-  std::string out_dir = "docs/benchmarks";
+  std::string out_dir = kBenchOutDir;
 };
 
 std::vector<tracking::TrajectoryPose> GroundTruth(const fs::path& dataset) {
@@ -343,7 +343,8 @@ CommandFn AddBenchReconstruct(CLI::App* sub) {
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSVs in --out");
   sub->add_option("--colmap", o->colmap, "The COLMAP binary")->capture_default_str();
   sub->add_flag("--keep-workspace", o->keep_workspace, "Keep COLMAP's temporary workspace (database, models, log)");
-  sub->add_option("--out", o->out_dir, "Where the table, TSVs and plot go")->capture_default_str();
+  sub->add_option("--out", o->out_dir, "Where the table, TSVs and plot go (docs/benchmarks: the committed pages)")
+      ->capture_default_str();
   sub->add_flag("--equirect", o->equirect,
                 "One 360° camera: the dataset's panoramas and its stitched rig as H.264 videos, odvr against COLMAP "
                 "on cube faces and odvr's rig mode, then the real clips beside the dataset (tracking_equirect.md)");

@@ -62,7 +62,7 @@ struct BenchRenderOptions {
   // What every row starts from: RenderOptions' defaults but for AddRenderSwitches' flags, for A/B
   // runs (the shading rate applies to the SG rows of one sample per pixel).
   render::RenderOptions switches;
-  std::string out_dir = "docs/benchmarks";
+  std::string out_dir = kBenchOutDir;
   bool report_only = false;
 };
 
@@ -889,12 +889,13 @@ CommandFn AddBenchRender(CLI::App* sub) {
       ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--images", o->images_dir,
                   "Also write each scored row's car layer and shadow ratio (linear EXR) here");
-  sub->add_flag("!--no-lobe-modes", o->lobe_modes, "Skip the warp × cosine rows");
-  sub->add_flag("!--no-hd", o->hd_row, "Skip the 1280x720 timing row");
-  sub->add_flag("!--no-ground-bounce", o->ground_bounce,
-                "Light the references from their maps' lower half, not from Cycles' catcher plane");
+  AddSetFlag(sub, "--no-lobe-modes", &o->lobe_modes, false, "Skip the warp × cosine rows");
+  AddSetFlag(sub, "--no-hd", &o->hd_row, false, "Skip the 1280x720 timing row");
+  AddSetFlag(sub, "--no-ground-bounce", &o->ground_bounce, false,
+             "Light the references from their maps' lower half, not from Cycles' catcher plane");
   AddRenderSwitches(sub, &o->switches);
-  sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go");
+  sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go (docs/benchmarks: the committed pages)")
+      ->capture_default_str();
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
   return [o] { return RunBenchRender(*o); };
 }

@@ -56,7 +56,7 @@ struct BenchStitchOptions {
   int repeats = 3;
   double scene_distance_m = 0;
   bool gpu = false;
-  std::string out_dir = "docs/benchmarks";
+  std::string out_dir = kBenchOutDir;
 };
 
 // Where an odvr stitch's time goes (capture::StitchReport), each the median of the repeats.
@@ -535,7 +535,8 @@ CommandFn AddBenchStitch(CLI::App* sub) {
       ->check(CLI::Range(1, 100));
   sub->add_option("--scene-distance", o->scene_distance_m, "Metres at which camera rays meet (0 = infinity)");
   sub->add_flag("--gpu", o->gpu, "Also time the GPU path (needs an OpenGL 4.5 context)");
-  sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go")->capture_default_str();
+  sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go (docs/benchmarks: the committed pages)")
+      ->capture_default_str();
   return [o] { return RunBenchStitch(*o); };
 }
 

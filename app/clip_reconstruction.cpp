@@ -23,7 +23,7 @@ void ClipInput::Check() const {
   if (!(camera_height_m >= 0)) throw UsageError("--camera-height", "must not be negative");
   if (first < 0) throw UsageError("--first", "must not be negative");
   if (count < 0 || (count > 0 && count < 3))
-    throw UsageError("--count", "structure from motion needs at least 3 frames");
+    throw UsageError("--frames", "structure from motion needs at least 3 frames");
   if (step < 1) throw UsageError("--step", "must be at least 1");
   if (track_width < 64 || track_width % 2 != 0) throw UsageError("--track-width", "must be even and >= 64");
   if (!(nadir_cap_deg >= 0 && nadir_cap_deg < 90)) throw UsageError("--nadir-cap", "must be in [0, 90) degrees");

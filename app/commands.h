@@ -37,6 +37,10 @@ CommandFn AddBenchPlayer(CLI::App* sub);
 // --cones (1, 7, 19 or 37) as the renderer's hexagonal rings (0-3); throws UsageError otherwise.
 int ConeRingsForCount(int cones);
 
+// A flag that sets *value to `set_to`. Where CLI11's "!--flag" form prints "--flag{false}" in
+// --help, this reads as the plain flag it is; a switch with an on and an off name is two of them.
+CLI::Option* AddSetFlag(CLI::App* sub, const std::string& name, bool* value, bool set_to, const std::string& help);
+
 // "WIDTHxHEIGHT" (each side at least 1) as {width, height}; throws UsageError naming `option`.
 std::pair<int, int> ParseSize(const std::string& text, const std::string& option = "--size");
 

@@ -21,7 +21,7 @@ const std::vector<CommandSpec>& Commands() {
       {"reconstruct", "Structure from motion of the rig: trajectory, sparse model, road plane, metric scale",
        AddReconstruct},
       {"export", "Write an augmented clip: the car driven along a path through the video, lit by it", AddExport},
-      {"bench", "Benchmarks: speed beside error, as tables and plots in docs/benchmarks", AddBench},
+      {"bench", "Benchmarks: speed beside error, as tables and plots (in ./odvr-bench unless --out says)", AddBench},
   };
   return commands;
 }
@@ -53,6 +53,11 @@ std::pair<int, int> ParseSize(const std::string& text, const std::string& option
   const int w = x == std::string::npos ? 0 : side(0, x), h = x == std::string::npos ? 0 : side(x + 1, text.size());
   if (w < 1 || h < 1) throw UsageError(option, "expects WIDTHxHEIGHT (at least 1x1), got '" + text + "'");
   return {w, h};
+}
+
+CLI::Option* AddSetFlag(CLI::App* sub, const std::string& name, bool* value, bool set_to, const std::string& help) {
+  return sub->add_flag_callback(
+      name, [value, set_to] { *value = set_to; }, help);
 }
 
 int Main(int argc, char** argv) {

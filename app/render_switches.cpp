@@ -1,10 +1,12 @@
 #include "app/render_switches.h"
 
+#include "app/commands.h"
+
 namespace odvr::app {
 
 void AddRenderSwitches(CLI::App* sub, render::RenderOptions* options) {
-  sub->add_flag("!--bin-depth", options->depth_per_lobe,
-                "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
+  AddSetFlag(sub, "--bin-depth", &options->depth_per_lobe, false,
+             "Light each lobe with every level its overlap bin lists, not only those its own λ needs");
   sub->add_option("--overlap-cutoff", options->overlap_cutoff,
                   "An SRBF lights a lobe where their product's integral is at least this fraction of its aligned value")
       ->check(CLI::Range(1e-6, 0.5));
@@ -12,13 +14,16 @@ void AddRenderSwitches(CLI::App* sub, render::RenderOptions* options) {
                   "Texels per side at most of the grid the ground's lit fraction is read from under the car "
                   "(0: traced from every point a cone meets the ground)")
       ->check(CLI::Range(0, 1024) & !CLI::Range(1, 7));
-  sub->add_flag("--exact-peak-shadows,!--peak-cone-shadows", options->exact_peak_shadows,
-                "Shadow each peak (a sun, a lamp) by a ray against the triangles, or by its cone through the voxels");
-  sub->add_flag("--valid-reflection-normals,!--raw-normals", options->valid_reflection_normals,
-                "Tilt a shading normal whose mirrored view would dive below its triangle, as Cycles does, or keep the "
-                "interpolated normal");
-  sub->add_flag("--specular-bounce,!--no-specular-bounce", options->specular_bounce,
-                "One bounce of the car's specular light on itself, found along the G-buffer, or none");
+  AddSetFlag(sub, "--exact-peak-shadows", &options->exact_peak_shadows, true,
+             "Shadow each peak (a sun, a lamp) by a ray against the triangles (the default)");
+  AddSetFlag(sub, "--peak-cone-shadows", &options->exact_peak_shadows, false,
+             "Shadow each peak by its cone through the voxels instead");
+  AddSetFlag(sub, "--valid-reflection-normals", &options->valid_reflection_normals, true,
+             "Tilt a shading normal whose mirrored view would dive below its triangle, as Cycles does (the default)");
+  AddSetFlag(sub, "--raw-normals", &options->valid_reflection_normals, false, "Keep the interpolated normals instead");
+  AddSetFlag(sub, "--specular-bounce", &options->specular_bounce, true,
+             "One bounce of the car's specular light on itself, found along the G-buffer (the default)");
+  AddSetFlag(sub, "--no-specular-bounce", &options->specular_bounce, false, "No bounce of the car's light on itself");
   sub->add_option("--shading-rate", options->shading_rate,
                   "2: shade one pixel of each 2x2 block, every pixel only of blocks that are not smooth (by "
                   "--supersample-contrast), and fill the rest between the shaded pixels")

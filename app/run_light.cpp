@@ -137,12 +137,17 @@ int RunLight(const LightOptions& o) {
 CommandFn AddLight(CLI::App* sub) {
   auto o = std::make_shared<LightOptions>();
   sub->add_option("input", o->input, "Equirect frame (EXR, HDR, PNG, JPEG)")->required();
-  sub->add_option("--levels", o->levels, "HEALPix levels to fit at most (1..6)")->check(CLI::Range(1, 6));
+  sub->add_option("--levels", o->levels, "HEALPix levels to fit at most (1..6)")
+      ->check(CLI::Range(1, 6))
+      ->capture_default_str();
   sub->add_option("--threshold", o->threshold, "Stop when the mean |residue| falls below this × mean radiance")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   AddTransformTuning(sub, &o->transform);
   sub->add_flag("--no-peaks", o->no_peaks, "Do not take suns and lamps out as free-form SGs first");
-  sub->add_option("--device", o->device, "Where the residual transform runs")->check(CLI::IsMember({"cpu", "gpu"}));
+  sub->add_option("--device", o->device, "Where the residual transform runs")
+      ->check(CLI::IsMember({"cpu", "gpu"}))
+      ->capture_default_str();
   sub->add_option("--out", o->out, "Write the lighting model (lighting.json)");
   sub->add_option("--preview", o->preview, "Write the model's reconstruction as an image (EXR keeps HDR)");
   sub->add_flag("--json", o->json, "Print one JSON object");

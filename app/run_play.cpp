@@ -144,10 +144,10 @@ CommandFn AddPlay(CLI::App* sub) {
       ->check(CLI::IsMember({"auto", "mono", "top-bottom", "side-by-side", "tb", "sbs"}))
       ->capture_default_str();
   sub->add_option("--exposure", o.exposure, "Exposure multiplier")->capture_default_str();
-  sub->add_option("--yaw", o.view.yaw_deg, "Initial view yaw in degrees (positive: right)");
-  sub->add_option("--pitch", o.view.pitch_deg, "Initial view pitch in degrees (positive: up)");
-  sub->add_option("--fov", o.view.fov_deg, "Initial vertical field of view in degrees (30-150)");
-  sub->add_flag("!--no-loop", o.loop, "Stop at the end instead of looping");
+  sub->add_option("--yaw", o.view.yaw_deg, "Initial view yaw in degrees (positive: right)")->capture_default_str();
+  sub->add_option("--pitch", o.view.pitch_deg, "Initial view pitch in degrees (positive: up)")->capture_default_str();
+  sub->add_option("--fov", o.view.fov_deg, "Initial vertical field of view in degrees (30-150)")->capture_default_str();
+  AddSetFlag(sub, "--no-loop", &o.loop, false, "Stop at the end instead of looping");
   sub->add_option("--quit-after", o.quit_after_s, "Window: close after this many seconds");
   sub->add_option("--screenshot", o.screenshot, "Window: save the last frame shown to this PNG");
   sub->add_option("--trajectory", o.trajectory,
@@ -186,6 +186,18 @@ CommandFn AddPlay(CLI::App* sub) {
       ->capture_default_str();
   sub->add_option("--stitch-device", c->live_options.stitch_device, "Live: stitch on cpu or gpu")
       ->capture_default_str();
+  sub->footer(
+      "Keys in the window, free look:\n"
+      "  drag, arrows   look around          +/-, wheel   zoom             Space   pause\n"
+      "  . ,            step a frame         ] [          speed x2, x0.5\n"
+      "  F1             overlay              F12          screenshot       Q, Esc  quit\n"
+      "With --car:\n"
+      "  W A S D, arrows  drive (the first key takes the wheel from the cruise)    drag  look around\n"
+      "  C  car on/off    +/-, wheel  zoom    Space  pause    F1  overlay    F12  screenshot    Q, Esc  quit\n"
+      "Examples:\n"
+      "  odvr play clip.mp4                      free look in a 360° video (mono or stereo)\n"
+      "  odvr play clip.mp4 --car car.glb        drive a car in it: reconstructed first, once\n"
+      "  odvr play --headless --frames 25        the demo with its car, as PNG frames");
   return [c] { return RunPlay(*c); };
 }
 

@@ -3,6 +3,7 @@
 // road plane and a summary into --out, and with --ground-truth also the trajectory errors.
 #include <unistd.h>
 
+#include <spdlog/spdlog.h>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -28,7 +29,8 @@ namespace {
 namespace fs = std::filesystem;
 
 struct ReconstructCommand {
-  std::string rig, frames, video, out = "reconstruction", ground_truth;
+  std::string rig, images, video, out = "reconstruction", ground_truth;
+  std::string frames;  // --frames as typed: a count, or (as before it was --images) a folder
   long first = 0, count = 0, step = 1;
   double rig_height_m = 0;
   bool json = false;
@@ -41,24 +43,39 @@ struct ReconstructCommand {
 };
 
 std::unique_ptr<capture::Source> OpenFrames(const ReconstructCommand& c, const capture::Rig& rig) {
-  if (!c.frames.empty()) return capture::OpenSource(c.frames);
+  if (!c.images.empty()) return capture::OpenSource(c.images);
   std::vector<std::string> dirs;
   for (const auto& cam : rig.cameras) {
     if (cam.image_dir.empty())
-      throw UsageError("--frames", "not given, and the rig file names no image_dir for camera " + cam.name);
+      throw UsageError("--images", "not given, and the rig file names no image_dir for camera " + cam.name);
     dirs.push_back((rig.path.parent_path() / cam.image_dir).string());
   }
   return capture::OpenImageSequences(dirs, {});
 }
 
-int RunReconstruct(const ReconstructCommand& c) {
+// --frames is a count, as in play, stitch and export. It named the input folder before --images
+// did: a folder given to it is still read as one, with a warning.
+void ResolveFrameCount(ReconstructCommand* c) {
+  if (c->frames.empty()) return;
+  if (c->frames.find_first_not_of("0123456789") == std::string::npos && c->frames.size() < 10) {
+    c->count = std::stol(c->frames);
+    return;
+  }
+  if (!fs::exists(c->frames) || !c->images.empty())
+    throw UsageError("--frames", "is how many frames to reconstruct, got '" + c->frames + "' (a folder is --images)");
+  spdlog::warn("--frames {} is a folder: read as --images {} (--frames now counts frames)", c->frames, c->frames);
+  c->images = c->frames;
+}
+
+int RunReconstruct(ReconstructCommand c) {
+  ResolveFrameCount(&c);
   if (c.first < 0) throw UsageError("--first", "must not be negative");
-  if (c.count < 0) throw UsageError("--count", "must not be negative");
-  if (c.count > 0 && c.count < 3) throw UsageError("--count", "structure from motion needs at least 3 frames");
+  if (c.count < 0) throw UsageError("--frames", "must not be negative");
+  if (c.count > 0 && c.count < 3) throw UsageError("--frames", "structure from motion needs at least 3 frames");
   if (c.rig_height_m < 0) throw UsageError("--rig-height", "must not be negative");
-  if (!c.video.empty() && !c.frames.empty()) throw UsageError("--video", "and --frames name the same input: give one");
-  if (c.rig.empty() && c.video.empty() && c.frames.empty())
-    throw UsageError("--video", "give a 360° clip (--video CLIP or --frames DIR of equirect images) or a --rig");
+  if (!c.video.empty() && !c.images.empty()) throw UsageError("--video", "and --images name the same input: give one");
+  if (c.rig.empty() && c.video.empty() && c.images.empty())
+    throw UsageError("--video", "give a 360° clip (--video CLIP or --images DIR of equirect images) or a --rig");
   if (!c.rig.empty() && (c.camera_height_m > 0 || !c.mask.empty()))
     throw UsageError("--camera-height", "and --mask belong to one equirect camera (no --rig): a rig has --rig-height");
 
@@ -66,8 +83,8 @@ int RunReconstruct(const ReconstructCommand& c) {
   tracking::Reconstruction r;
   if (c.rig.empty()) {
     ClipInput in;
-    in.clip = c.video.empty() ? c.frames : c.video;
-    in.flag = c.video.empty() ? "--frames" : "--video";
+    in.clip = c.video.empty() ? c.images : c.video;
+    in.flag = c.video.empty() ? "--images" : "--video";
     in.camera_height_m = c.camera_height_m;
     in.mask = c.mask;
     if (c.stereo != "auto") in.stereo = capture::ParseStereoLayout(c.stereo);
@@ -143,7 +160,7 @@ CommandFn AddReconstruct(CLI::App* sub) {
                   "A 360° clip from one camera (equirectangular MP4, MOV, MKV, TS; mono, or stereo of which one eye "
                   "is used): no --rig needed");
   sub->add_option("--rig", c->rig, "Rig calibration (config/*.json or a dataset's rig.json) for a multi-camera rig");
-  sub->add_option("--frames", c->frames,
+  sub->add_option("--images", c->images,
                   "Without --rig: a folder of equirect images. With it: per-camera image folders (a folder holding "
                   "cam0, cam1, ...) or videos (default: the rig file's image_dir)");
   sub->add_option("--camera-height", c->camera_height_m,
@@ -162,7 +179,7 @@ CommandFn AddReconstruct(CLI::App* sub) {
   sub->add_option("--step", c->step, "One camera: track every step-th frame")->capture_default_str();
   sub->add_option("--out", c->out, "Output folder")->capture_default_str();
   sub->add_option("--first", c->first, "First frame of the recording");
-  sub->add_option("--count", c->count, "Frames to reconstruct (default: all)");
+  sub->add_option("--frames,--count", c->frames, "How many frames to reconstruct (default: all)");
   sub->add_option("--rig-height", c->rig_height_m, "Rig height above the road in metres (default: the rig file's)");
   sub->add_option("--ground-truth", c->ground_truth,
                   "trajectory_gt.json to evaluate against (ATE, RPE, scale error; added to summary.json)");

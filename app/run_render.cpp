@@ -279,7 +279,7 @@ int ConeRingsForCount(int cones) {
 
 CommandFn AddRender(CLI::App* sub) {
   auto o = std::make_shared<RenderCliOptions>();
-  sub->add_option("--model", o->model, "The car: glTF 2.0 (.glb or .gltf)")->required();
+  sub->add_option("--car,--model", o->model, "The car: glTF 2.0 (.glb or .gltf)")->required();
   sub->add_option("--env", o->env, "Equirect frame that lights it and is the background (EXR, HDR, PNG, JPEG)")
       ->required();
   sub->add_option("--lighting", o->lighting, "A lighting model (odvr light --out) instead of fitting --env here");
@@ -319,6 +319,11 @@ CommandFn AddRender(CLI::App* sub) {
                   "renders after the first")
       ->check(CLI::Range(1, 1000));
   sub->add_flag("--json", o->json, "Print one JSON object: per-stage ms and the counts");
+  // --help shows what each of these is when not given.
+  for (const char* name :
+       {"--levels", "--cones", "--voxels", "--size", "--supersample", "--supersample-contrast", "--camera",
+        "--overlap-cutoff", "--ground-lit-map", "--shading-rate", "--device", "--shade-lanes", "--repeat"})
+    sub->get_option(name)->capture_default_str();
   return [o] { return RunRender(*o); };
 }
 

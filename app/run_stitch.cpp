@@ -70,7 +70,7 @@ int RunStitch(const StitchCommand& c) {
   options.scene_distance_m = c.scene_distance_m;
   options.Check();
   if (c.frames < 0) throw UsageError("--frames", "must not be negative");
-  if (c.start < 0) throw UsageError("--start", "must not be negative");
+  if (c.start < 0) throw UsageError("--first", "must not be negative");
 
   std::string ext = fs::path(c.out).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
@@ -205,7 +205,7 @@ CommandFn AddStitch(CLI::App* sub) {
   sub->add_option("--size", c->size, "Output equirect size WIDTHxHEIGHT")->capture_default_str();
   sub->add_option("--device", c->device, "gpu (GLSL compute) or cpu (multithreaded reference)")->capture_default_str();
   sub->add_option("--frames", c->frames, "Stitch at most this many frames (default: all)");
-  sub->add_option("--start", c->start, "First frame of a recording");
+  sub->add_option("--first,--start", c->start, "First frame of a recording");
   sub->add_option("--scene-distance", c->scene_distance_m, "Metres at which camera rays meet (0 = infinity)")
       ->capture_default_str();
   sub->add_flag("--no-gains", c->no_gains, "Do not compensate the cameras' exposure differences");

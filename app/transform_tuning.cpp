@@ -2,6 +2,8 @@
 
 #include <string>
 
+#include "app/commands.h"
+
 namespace odvr::app {
 
 void AddTransformTuning(CLI::App* sub, lighting::ResidualTransformOptions* options) {
@@ -39,11 +41,13 @@ void AddTransformTuning(CLI::App* sub, lighting::ResidualTransformOptions* optio
          },
          "Amplitude normalization of the transform (default partition)")
       ->check(CLI::IsMember({"none", "local-sum", "partition"}));
-  sub->add_flag("--exact-reconstruction,!--magnify", options->exact_reconstruction,
-                "Evaluate every coarser level on each level's grid, or magnify the coarser grid's reconstruction "
-                "through six samples per axis (default: as accurate, faster)");
-  sub->add_flag("!--no-coarse-correction", options->coarse_correction,
-                "Do not let the two levels below the finest refit what every level left");
+  AddSetFlag(sub, "--exact-reconstruction", &options->exact_reconstruction, true,
+             "Evaluate every coarser level on each level's grid");
+  AddSetFlag(sub, "--magnify", &options->exact_reconstruction, false,
+             "Magnify the coarser grid's reconstruction through six samples per axis (the default: as accurate, "
+             "faster)");
+  AddSetFlag(sub, "--no-coarse-correction", &options->coarse_correction, false,
+             "Do not let the two levels below the finest refit what every level left");
 }
 
 }  // namespace odvr::app

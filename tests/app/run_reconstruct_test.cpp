@@ -31,8 +31,8 @@ TEST(RunReconstruct, StreetSixFramesWritesEveryOutputAndMeetsTheTargets) {
   if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent";
   const ScratchDir t{"odvr_run_reconstruct"};
   const fs::path out = t.dir / "rec";
-  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --frames " +
-                           (kStreet / "rig").string() + " --first 2 --count 6 --out " + out.string() +
+  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --images " +
+                           (kStreet / "rig").string() + " --first 2 --frames 6 --out " + out.string() +
                            " --ground-truth " + (kStreet / "trajectory_gt.json").string() + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(r.err.empty()) << "--json must keep stderr quiet: " << r.err;
@@ -76,8 +76,8 @@ TEST(RunReconstruct, NoTrifocalSkipsTheCheck) {
   if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent";
   const ScratchDir t{"odvr_run_reconstruct_no_trifocal"};
   const CliRun r =
-      RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --frames " + (kStreet / "rig").string() +
-              " --count 3 --no-trifocal --json --out " + (t.dir / "rec").string());
+      RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --images " + (kStreet / "rig").string() +
+              " --frames 3 --no-trifocal --json --out " + (t.dir / "rec").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_FALSE(j["trifocal"]["enabled"].get<bool>());
@@ -88,14 +88,17 @@ TEST(RunReconstruct, NoTrifocalSkipsTheCheck) {
 }
 
 TEST(RunReconstruct, TooFewFramesIsAUsageError) {
-  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --count 2");
+  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --frames 2");
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.err.find("at least 3 frames"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--frames: structure from motion needs at least 3 frames"), std::string::npos) << r.err;
+  const CliRun words = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --frames six");
+  EXPECT_EQ(words.exit_code, 2);
+  EXPECT_NE(words.err.find("(a folder is --images)"), std::string::npos) << words.err;
 }
 
 TEST(RunReconstruct, CameraCountMismatchNamesBothSides) {
   if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent";
-  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --frames " +
+  const CliRun r = RunOdvr("reconstruct --rig " + (kStreet / "rig.json").string() + " --images " +
                            (kStreet / "rig/cam0").string() + " --count 3");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("delivers 1 cameras but the rig file"), std::string::npos) << r.err;
@@ -140,8 +143,10 @@ TEST(RunReconstruct, OneCameraNeedsAClipAndRefusesRigOptions) {
   const CliRun mixed = RunOdvr("reconstruct --rig x.json --camera-height 1.5");
   EXPECT_EQ(mixed.exit_code, 2);
   EXPECT_NE(mixed.err.find("--rig-height"), std::string::npos) << mixed.err;
+  // A folder given to --frames, as before --images named it: still read, with a warning.
   const CliRun multi = RunOdvr("reconstruct --frames " + (fs::path(ODVR_SOURCE_DIR) / "media/demo/rig").string());
   EXPECT_EQ(multi.exit_code, 2);
+  EXPECT_NE(multi.err.find("read as --images"), std::string::npos) << multi.err;
   EXPECT_NE(multi.err.find("holds 6 cameras: a multi-camera recording needs its --rig"), std::string::npos)
       << multi.err;
 }

@@ -22,7 +22,7 @@ const std::string kCar = kStreet + "/car.glb";
 const std::string kPano = kStreet + "/pano_hdr/000010.exr";
 // The car 7 m ahead, seen from the rig's height (frame 10 of street_a in odvr's Y-up world is
 // close to this; exactness is the renderer test's business).
-const std::string kArgs = "--model " + kCar + " --env " + kPano + " --camera -7,2.06,0.1,0,0.7,0,43 --levels 4";
+const std::string kArgs = "--car " + kCar + " --env " + kPano + " --camera -7,2.06,0.1,0,0.7,0,43 --levels 4";
 
 bool HaveData() { return std::filesystem::exists(kCar) && std::filesystem::exists(kPano); }
 

@@ -5,7 +5,7 @@ Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
 
   one image:
     blender -b --factory-startup --python tools/blender/render_reference.py -- \
-        --model media/demo/car.glb --env ../shared/data/env/sky.exr \
+        --car media/demo/car.glb --env ../shared/data/env/sky.exr \
         --camera 5.2,1.9,4.4,0,0.55,0,30 --size 320x180 --spp 256 --material glossy --out /tmp/ref/sky_glossy
 
   the committed set (media/reference/, see media/README.md):
