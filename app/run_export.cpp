@@ -1,6 +1,7 @@
 // odvr export: an augmented clip — the car driven along a scripted path through the recorded
 // street, rendered frame by frame and written as a video (H.264, H.265 or MJPEG through libav),
 // atomically.
+#include <spdlog/spdlog.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -35,6 +36,7 @@ struct ExportCommand {
   double fps = -1;    // -1: the video's
   std::string codec;  // capture::VideoWriterOptions::codec: "" by the extension
   int crf = 20;
+  bool no_audio = false;
   bool json = false;
 };
 
@@ -71,6 +73,12 @@ int RunExport(ExportCommand& c) {
   AugmentedScene scene(c.scene);
   const double fps = c.fps > 0 ? c.fps : (scene.fps() > 0 ? scene.fps() : 25.0);
   video.fps = fps;
+  // The recording's sound from the first frame shown: the cruise advances the video by 1/fps a
+  // frame, so sound and pictures stay in step (a drive moves the view along the street instead).
+  if (!c.no_audio && std::filesystem::is_regular_file(c.scene.video) && scene.fps() > 0) {
+    video.audio_from = c.scene.video;
+    video.audio_start_s = static_cast<double>(scene.frames().front()) / scene.fps();
+  }
   video.Check();
   const double dt = 1.0 / fps;
   // By default the drive's duration, or without one the trajectory's stretch of the video.
@@ -80,10 +88,19 @@ int RunExport(ExportCommand& c) {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   std::vector<std::uint8_t> bgr(static_cast<std::size_t>(width) * height * 3);
-  std::string encoder;
+  std::string encoder, audio, audio_note;
   WriteFileAtomically(c.out, [&](const std::filesystem::path& tmp) {
     capture::LibavVideoWriter writer(tmp, video);
     encoder = writer.codec_name();
+    audio = writer.audio_codec();
+    audio_note = writer.audio_note();
+    // A recording without sound makes a silent clip as a matter of course; sound that cannot be
+    // kept (a codec the container does not hold) is a loss to warn of.
+    if (audio_note.rfind("no audio stream", 0) == 0) {
+      spdlog::info("{}: silent: {}", c.out, audio_note);
+    } else if (!audio_note.empty()) {
+      spdlog::warn("{}: {}", c.out, audio_note);
+    }
     for (int i = 0; i < frames; ++i) {
       if (i > 0 && script.empty()) scene.Cruise(dt);
       if (i > 0 && !script.empty()) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
@@ -105,14 +122,15 @@ int RunExport(ExportCommand& c) {
   });
   const double elapsed = SecondsSince(start);
   if (c.json) {
-    std::cout << nlohmann::json{{"output", c.out},    {"frames", frames},        {"size", {width, height}},
-                                {"fps", fps},         {"codec", encoder},        {"crf", c.crf},
-                                {"seconds", elapsed}, {"cruise", script.empty()}}
+    std::cout << nlohmann::json{{"output", c.out},    {"frames", frames},         {"size", {width, height}},
+                                {"fps", fps},         {"codec", encoder},         {"crf", c.crf},
+                                {"seconds", elapsed}, {"cruise", script.empty()}, {"audio", audio}}
                      .dump(2)
               << "\n";
   } else {
     std::cout << c.out << ": " << frames << " frames " << width << "x" << height << " at " << fps << " fps (" << encoder
-              << ", crf " << c.crf << ") in " << elapsed << " s\n";
+              << ", crf " << c.crf << (audio.empty() ? ", silent" : ", " + audio + " audio copied") << ") in "
+              << elapsed << " s\n";
   }
   return 0;
 }
@@ -129,7 +147,7 @@ CommandFn AddExport(CLI::App* sub) {
   sub->add_option("--trajectory", s.trajectory, "Camera poses: odvr reconstruct's trajectory.json or trajectory.tum")
       ->required();
   sub->add_option("--car", s.car, "The car: glTF 2.0 (.glb/.gltf)")->required();
-  sub->add_option("--path", c->path,
+  sub->add_option("--drive,--path", c->path,
                   "The drive: keys and durations, e.g. \"W:2s,A:1s\", or a file holding that (default: the car "
                   "cruises ahead of the camera through the whole trajectory)");
   sub->add_option("--car-start", s.car_start_m, "Car's start: arc length along the camera path in metres");
@@ -145,6 +163,7 @@ CommandFn AddExport(CLI::App* sub) {
   sub->add_option("--size", c->size, "WIDTHxHEIGHT (even)")->capture_default_str();
   sub->add_option("--frames", c->frames, "Frames to write (default: the path's duration)");
   sub->add_option("--fps", c->fps, "Frame rate (default: the video's)");
+  sub->add_flag("--no-audio", c->no_audio, "Leave the clip silent (by default the video's sound is copied)");
   sub->add_flag("--json", c->json, "Print a JSON report");
   sub->add_option("--levels", s.lighting_levels, "Car light: HEALPix levels (1..6)")->capture_default_str();
   sub->add_option("--voxels", s.voxel_resolution, "Visibility grid per side (64, 128, 256)")->capture_default_str();

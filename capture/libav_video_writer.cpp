@@ -1,6 +1,7 @@
 #include "capture/libav_video_writer.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <string>
 
 #include "capture/libav_video.h"
@@ -33,6 +34,7 @@ void VideoWriterOptions::Check() const {
   if (!codec.empty() && codec != "h264" && codec != "h265" && codec != "mjpeg")
     throw UsageError("--codec", "\"" + codec + "\" is none of h264, h265, mjpeg");
   if (crf < 0 || crf > 51) throw UsageError("--crf", "must be in 0..51");
+  if (!(audio_start_s >= 0 && audio_start_s < 1e7)) throw UsageError("audio start", "must be a time in seconds >= 0");
 }
 
 std::string DefaultCodecFor(const std::filesystem::path& path) {
@@ -54,6 +56,14 @@ struct LibavVideoWriter::Impl {
   long frames = 0;
   bool header_written = false, finished = false;
   std::string codec_name;
+  // The audio copied: its input, its stream there and here, the input's pts of audio_start_s.
+  AVFormatContext* audio_in = nullptr;
+  int audio_in_index = -1;
+  AVStream* audio_out = nullptr;
+  AVPacket* audio_packet = nullptr;
+  std::int64_t audio_start_pts = 0;
+  bool audio_ended = false;
+  std::string audio_codec, audio_note;
 
   [[noreturn]] void Fail(const std::string& what, int code) const {
     throw Error(name, what + (code < 0 ? ": " + LibavErrorText(code) : std::string()));
@@ -127,6 +137,83 @@ struct LibavVideoWriter::Impl {
     }
   }
 
+  // Opens options.audio_from's first audio stream and adds its copy to the output, before the
+  // header is written. A source without audio, or with audio this container cannot hold, is
+  // not an error: the clip is silent and audio_note says why.
+  void OpenAudio() {
+    const std::string source = options.audio_from;
+    int rc = avformat_open_input(&audio_in, source.c_str(), nullptr, nullptr);
+    if (rc < 0) throw Error(source, "cannot open for its audio: " + LibavErrorText(rc));
+    rc = avformat_find_stream_info(audio_in, nullptr);
+    if (rc < 0) throw Error(source, "cannot read its streams: " + LibavErrorText(rc));
+    audio_in_index = av_find_best_stream(audio_in, AVMEDIA_TYPE_AUDIO, -1, -1, nullptr, 0);
+    if (audio_in_index < 0) {
+      audio_note = "no audio stream in " + source;
+      return;
+    }
+    const AVStream* in = audio_in->streams[audio_in_index];
+    const AVCodecID id = in->codecpar->codec_id;
+    if (avformat_query_codec(format->oformat, id, FF_COMPLIANCE_NORMAL) != 1) {
+      audio_note = std::string("the ") + format->oformat->name + " container cannot hold " + avcodec_get_name(id) +
+                   " audio: the clip is silent (MP4, MOV or MKV take AAC)";
+      audio_in_index = -1;
+      return;
+    }
+    audio_out = avformat_new_stream(format, nullptr);
+    if (!audio_out) Fail("cannot add an audio stream", 0);
+    rc = avcodec_parameters_copy(audio_out->codecpar, in->codecpar);
+    if (rc < 0) Fail("cannot copy the audio stream's parameters", rc);
+    audio_out->codecpar->codec_tag = 0;  // the source container's tag may mean nothing in this one
+    audio_out->time_base = in->time_base;
+    audio_codec = avcodec_get_name(id);
+    audio_packet = av_packet_alloc();
+    const std::int64_t first = in->start_time == AV_NOPTS_VALUE ? 0 : in->start_time;
+    audio_start_pts = first + av_rescale_q(static_cast<std::int64_t>(options.audio_start_s * AV_TIME_BASE),
+                                           AV_TIME_BASE_Q, in->time_base);
+    if (options.audio_start_s > 0) {
+      const std::int64_t target = av_rescale_q(audio_start_pts, in->time_base, AV_TIME_BASE_Q);
+      rc = avformat_seek_file(audio_in, -1, INT64_MIN, target, target, 0);
+      if (rc < 0) throw Error(source, "cannot seek its audio to " + std::to_string(options.audio_start_s) + " s");
+    }
+  }
+
+  // Copies the source's audio packets that start before `until_s` of the clip (the time of the
+  // video written so far), shifted so that audio_start_s of the source plays at the clip's 0.
+  void CopyAudioUntil(double until_s) {
+    if (audio_in_index < 0 || audio_ended) return;
+    const AVRational in_tb = audio_in->streams[audio_in_index]->time_base;
+    const std::int64_t until =
+        audio_start_pts + av_rescale_q(static_cast<std::int64_t>(until_s * AV_TIME_BASE), AV_TIME_BASE_Q, in_tb);
+    for (;;) {
+      if (!audio_packet->data) {  // nothing held back from the last call
+        const int rc = av_read_frame(audio_in, audio_packet);
+        if (rc == AVERROR_EOF) {
+          audio_ended = true;
+          return;
+        }
+        if (rc < 0) throw Error(options.audio_from, "cannot read its audio: " + LibavErrorText(rc));
+        if (audio_packet->stream_index != audio_in_index) {
+          av_packet_unref(audio_packet);
+          continue;
+        }
+      }
+      const std::int64_t pts = audio_packet->pts != AV_NOPTS_VALUE ? audio_packet->pts : audio_packet->dts;
+      if (pts == AV_NOPTS_VALUE || pts < audio_start_pts) {  // before the clip's start (or untimed)
+        av_packet_unref(audio_packet);
+        continue;
+      }
+      if (pts >= until) return;  // held for the next call
+      audio_packet->pts = pts - audio_start_pts;
+      audio_packet->dts = audio_packet->dts == AV_NOPTS_VALUE ? audio_packet->pts : audio_packet->dts - audio_start_pts;
+      av_packet_rescale_ts(audio_packet, in_tb, audio_out->time_base);
+      audio_packet->stream_index = audio_out->index;
+      audio_packet->pos = -1;
+      const int wrote = av_interleaved_write_frame(format, audio_packet);  // takes the packet's data
+      av_packet_unref(audio_packet);
+      if (wrote < 0) Fail("cannot write audio (disk full?)", wrote);
+    }
+  }
+
   void Open() {
     int rc = avformat_alloc_output_context2(&format, nullptr, nullptr, name.c_str());
     if (rc < 0 || !format) Fail("libav writes no container for this extension", rc);
@@ -140,6 +227,7 @@ struct LibavVideoWriter::Impl {
     // hvc1: the HEVC tag Apple's players want in MP4/MOV (hev1 is the default).
     if (codec_name == "libx265" && format->oformat->codec_tag) stream->codecpar->codec_tag = MKTAG('h', 'v', 'c', '1');
     if (options.spherical_equirect) AddSphericalMetadata();
+    if (!options.audio_from.empty()) OpenAudio();
     rc = avio_open(&format->pb, name.c_str(), AVIO_FLAG_WRITE);
     if (rc < 0) Fail("cannot open for writing", rc);
     AVDictionary* muxer = nullptr;
@@ -176,6 +264,8 @@ struct LibavVideoWriter::Impl {
     sws_freeContext(scaler);
     av_frame_free(&frame);
     av_packet_free(&packet);
+    av_packet_free(&audio_packet);
+    avformat_close_input(&audio_in);
   }
 };
 
@@ -205,12 +295,14 @@ void LibavVideoWriter::Write(const cv::Mat& bgr) {
   im.frame->pts = im.frames;
   im.Encode(im.frame);
   ++im.frames;
+  im.CopyAudioUntil(static_cast<double>(im.frames) / im.options.fps);
 }
 
 void LibavVideoWriter::Finish() {
   Impl& im = *impl_;
   if (im.finished) return;
   im.Encode(nullptr);
+  im.CopyAudioUntil(static_cast<double>(im.frames) / im.options.fps);
   im.finished = true;
   int rc = av_write_trailer(im.format);
   if (rc < 0) im.Fail("cannot write the container's trailer (disk full?)", rc);
@@ -220,5 +312,7 @@ void LibavVideoWriter::Finish() {
 
 long LibavVideoWriter::frames_written() const { return impl_->frames; }
 const std::string& LibavVideoWriter::codec_name() const { return impl_->codec_name; }
+const std::string& LibavVideoWriter::audio_codec() const { return impl_->audio_codec; }
+const std::string& LibavVideoWriter::audio_note() const { return impl_->audio_note; }
 
 }  // namespace odvr::capture

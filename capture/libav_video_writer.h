@@ -20,6 +20,12 @@ struct VideoWriterOptions {
   // Google's Spherical Video V2 metadata (sv3d, and st3d: mono) marking the video as a 360°
   // equirectangular one, so that players and sites show it as 360°. MP4/MOV and Matroska.
   bool spherical_equirect = false;
+  // Sound: the first audio stream of this file, copied as it is (no re-encoding), from
+  // `audio_start_s` of it for as long as the video written lasts, so that a clip made from a
+  // recording keeps the recording's sound in step with its pictures. Empty: silent. A file with
+  // no audio, or audio the container cannot hold, leaves the clip silent (audio_note() says why).
+  std::string audio_from;
+  double audio_start_s = 0;
   void Check() const;  // throws odvr::UsageError naming the field
 };
 
@@ -44,6 +50,10 @@ class LibavVideoWriter {
   void Finish();
   long frames_written() const;
   const std::string& codec_name() const;  // libavcodec's encoder name: libx264, libx265, mjpeg
+  // The audio codec copied ("aac", "opus", ...), or "" when the clip is silent; then audio_note()
+  // says why when audio was asked for (no audio stream in it, a codec the container cannot hold).
+  const std::string& audio_codec() const;
+  const std::string& audio_note() const;
 
  private:
   struct Impl;

@@ -185,7 +185,7 @@ TEST(RunPlayGL, ExportWritesAClipAtomically) {
   const auto r =
       RunOdvr("export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
               (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
-              " --path W:0.2s --size 96x54 --out " + out.string() + " --levels 3 --voxels 64 --supersample 2");
+              " --drive W:0.2s --size 96x54 --out " + out.string() + " --levels 3 --voxels 64 --supersample 2");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("ETA"), std::string::npos) << r.err;
   cv::VideoCapture clip(out.string());
@@ -199,7 +199,7 @@ TEST(RunPlayGL, ExportWritesAClipAtomically) {
   }
   EXPECT_EQ(frames, 6);
   // H.264 by default for .mp4 (it was MPEG-4 Part 2), which every player and site takes.
-  EXPECT_NE(r.out.find("(libx264, crf 20)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(libx264, crf 20, silent)"), std::string::npos) << r.out;
   const auto js = RunOdvr("export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
                           (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
                           " --frames 2 --size 64x36 --codec h265 --json --out " + (dir / "j.mkv").string() + kSmall);
@@ -220,6 +220,46 @@ TEST(RunPlayGL, ExportWritesAClipAtomically) {
   int files = 0;
   for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
   EXPECT_EQ(files, 1) << "a temporary was left beside the clip";
+  fs::remove_all(dir);
+}
+
+// A recording with sound: the exported clip carries its sound, copied, as long as the pictures.
+TEST(RunPlayGL, ExportCarriesTheRecordingsSound) {
+  const fs::path dir = TempDir("odvr_export_audio");
+  const fs::path recording = dir / "street_with_sound.mp4";
+  const std::string make =
+      "ffmpeg -v error -y -i " + (kDemo / "street.mp4").string() +
+      " -f lavfi -i sine=frequency=440:sample_rate=48000:duration=10 -c:v copy -c:a aac -shortest " +
+      recording.string();
+  ASSERT_EQ(std::system(make.c_str()), 0) << make;
+  const std::string common = "export --video " + recording.string() + " --trajectory " +
+                             (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
+                             " --frames 10 --size 64x36 --json" + kSmall;
+  const auto with = RunOdvr(common + " --out " + (dir / "with.mp4").string());
+  ASSERT_EQ(with.exit_code, 0) << with.err;
+  EXPECT_EQ(nlohmann::json::parse(with.out)["audio"].get<std::string>(), "aac");
+  const std::string probe =
+      "ffprobe -v error -select_streams a:0 -show_entries stream=codec_name:format=duration "
+      "-of default=nw=1 " +
+      (dir / "with.mp4").string() + " > " + (dir / "probe.txt").string();
+  ASSERT_EQ(std::system(probe.c_str()), 0);
+  std::ifstream in(dir / "probe.txt");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("codec_name=aac"), std::string::npos) << text;
+  const auto at = text.find("duration=");
+  ASSERT_NE(at, std::string::npos) << text;
+  EXPECT_NEAR(std::stod(text.substr(at + 9)), 10 / 25.0, 0.06) << "10 frames at the demo's 25 fps";
+
+  const auto without = RunOdvr(common + " --no-audio --out " + (dir / "without.mp4").string());
+  ASSERT_EQ(without.exit_code, 0) << without.err;
+  EXPECT_EQ(nlohmann::json::parse(without.out)["audio"].get<std::string>(), "");
+  // The demo has no sound: the clip is silent and a warning says why.
+  const auto demo = RunOdvr("export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
+                            (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
+                            " --frames 2 --size 64x36 --out " + (dir / "demo.mp4").string() + kSmall);
+  ASSERT_EQ(demo.exit_code, 0) << demo.err;
+  EXPECT_NE(demo.err.find("no audio stream in"), std::string::npos) << demo.err;
+  EXPECT_NE(demo.out.find(", silent)"), std::string::npos) << demo.out;
   fs::remove_all(dir);
 }
 

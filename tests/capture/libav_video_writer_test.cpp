@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
 
 #include "capture/libav_video.h"
 #include "core/error.h"
@@ -114,6 +117,86 @@ TEST_F(LibavVideoWriter, A360VideoCarriesSphericalMetadataPlayersRead) {
   writer.Write(Pattern(0, 128, 64));
   writer.Finish();
   EXPECT_EQ(ProbeVideo((dir_ / "flat.mp4").string()).projection, "");
+}
+
+// The output of a shell command (stderr with it).
+std::string Output(const std::string& command) {
+  std::string text;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return text;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, pipe)) text += buffer;
+  ::pclose(pipe);
+  return text;
+}
+
+// The mean volume in dB of `file`'s first `seconds` of sound, as ffmpeg's volumedetect measures it.
+double MeanVolumeDb(const fs::path& file, double seconds) {
+  const std::string text = Output("ffmpeg -hide_banner -nostats -i " + file.string() + " -t " +
+                                  std::to_string(seconds) + " -vn -af volumedetect -f null -");
+  const auto at = text.find("mean_volume: ");
+  return at == std::string::npos ? NAN : std::stod(text.substr(at + 13));
+}
+
+TEST_F(LibavVideoWriter, TheRecordingsSoundIsCopiedFromTheFirstFrameShown) {
+  if (std::system("command -v ffmpeg >/dev/null 2>&1") != 0) GTEST_SKIP() << "ffmpeg is not installed";
+  // 3 s of a recording whose sound is silent for 1 s, then a 440 Hz tone: AAC in MP4, as cameras write.
+  const fs::path source = dir_ / "recording.mp4";
+  const std::string make =
+      "ffmpeg -v error -y -f lavfi -i testsrc=size=64x32:rate=25:duration=3 -f lavfi -i "
+      "\"aevalsrc=if(lt(t\\,1)\\,0\\,0.5*sin(2*PI*440*t)):s=48000:d=3\" -c:v libx264 -c:a aac "
+      "-shortest " +
+      source.string();
+  ASSERT_EQ(std::system(make.c_str()), 0) << make;
+
+  for (const char* file : {"late.mp4", "late.mkv"}) {
+    VideoWriterOptions o;
+    o.width = 128;
+    o.height = 64;
+    o.audio_from = source.string();
+    o.audio_start_s = 1.2;  // inside the tone
+    capture::LibavVideoWriter writer(dir_ / file, o);
+    for (int i = 0; i < 25; ++i) writer.Write(Pattern(i, 128, 64));
+    writer.Finish();
+    EXPECT_EQ(writer.audio_codec(), "aac") << file;
+    EXPECT_EQ(writer.audio_note(), "") << file;
+    const std::string probe = Output(
+        "ffprobe -v error -select_streams a:0 -show_entries format=duration:stream=codec_name "
+        "-of default=nw=1 " +
+        (dir_ / file).string());
+    EXPECT_NE(probe.find("codec_name=aac"), std::string::npos) << file << ": " << probe;
+    const auto at = probe.find("duration=");
+    ASSERT_NE(at, std::string::npos) << probe;
+    // 25 frames at 25 fps: one second, to within an AAC frame (21 ms) and the encoder's priming.
+    EXPECT_NEAR(std::stod(probe.substr(at + 9)), 1.0, 0.06) << file;
+    const double loud = MeanVolumeDb(dir_ / file, 0.5);
+    std::printf("%s: mean volume of its first 0.5 s %.1f dB\n", file, loud);
+    EXPECT_GT(loud, -15.0) << file << ": the tone from 1.2 s of the recording starts the clip";
+  }
+  // From the recording's start: the clip's first half second is the recording's silence.
+  VideoWriterOptions early;
+  early.width = 128;
+  early.height = 64;
+  early.audio_from = source.string();
+  capture::LibavVideoWriter writer(dir_ / "early.mp4", early);
+  for (int i = 0; i < 25; ++i) writer.Write(Pattern(i, 128, 64));
+  writer.Finish();
+  const double quiet = MeanVolumeDb(dir_ / "early.mp4", 0.5);
+  EXPECT_LT(quiet, -60.0);
+
+  // A recording with no sound: a silent clip, and the note says why.
+  const fs::path mute = dir_ / "mute.mp4";
+  ASSERT_EQ(
+      std::system(("ffmpeg -v error -y -f lavfi -i testsrc=size=64x32:rate=25:duration=1 -c:v libx264 " + mute.string())
+                      .c_str()),
+      0);
+  VideoWriterOptions silent = early;
+  silent.audio_from = mute.string();
+  capture::LibavVideoWriter quiet_writer(dir_ / "silent.mp4", silent);
+  quiet_writer.Write(Pattern(0, 128, 64));
+  quiet_writer.Finish();
+  EXPECT_EQ(quiet_writer.audio_codec(), "");
+  EXPECT_EQ(quiet_writer.audio_note(), "no audio stream in " + mute.string());
 }
 
 TEST_F(LibavVideoWriter, FailuresAreErrorsNamingTheFile) {
