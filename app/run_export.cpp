@@ -38,7 +38,27 @@ struct ExportCommand {
   int crf = 20;
   bool no_audio = false;
   bool json = false;
+  std::string view;  // "YAW,PITCH[,FOV]" degrees on top of looking at the car
 };
+
+// --view YAW,PITCH[,FOV]: where the clip looks, turned from the car (positive: right, up), and its
+// vertical field of view.
+AugmentedView ParseExportView(const std::string& text) {
+  AugmentedView view;
+  if (text.empty()) return view;
+  double v[3] = {0, 0, 0};
+  char tail = 0;
+  const int n = std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &v[0], &v[1], &v[2], &tail);
+  if ((n != 2 && n != 3) || !std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
+    throw UsageError("--view", "expects YAW,PITCH or YAW,PITCH,FOV in degrees, got '" + text + "'");
+  if (std::abs(v[1]) > 89) throw UsageError("--view", "pitch must be within ±89 degrees, got " + text);
+  if (n == 3 && !(v[2] >= 10 && v[2] <= 150))
+    throw UsageError("--view", "the field of view must be 10-150 degrees, got " + text);
+  view.yaw_deg = v[0];
+  view.pitch_deg = v[1];
+  if (n == 3) view.vfov_deg = v[2];
+  return view;
+}
 
 std::pair<int, int> ParseExportSize(const std::string& text) {
   int a = 0, b = 0;
@@ -68,6 +88,7 @@ int RunExport(ExportCommand& c) {
   const auto script = script_text.empty() ? std::vector<DriveStep>{} : ParseDriveScript(script_text);
   if (c.frames == 0 || c.frames < -1) throw UsageError("--frames", "must be at least 1");
   if (c.fps != -1 && !(c.fps > 0 && c.fps <= 1000)) throw UsageError("--fps", "must be in (0, 1000]");
+  const AugmentedView view = ParseExportView(c.view);
 
   gl::HeadlessContext context;
   AugmentedScene scene(c.scene);
@@ -89,6 +110,7 @@ int RunExport(ExportCommand& c) {
   const auto start = Clock::now();
   std::vector<std::uint8_t> bgr(static_cast<std::size_t>(width) * height * 3);
   std::string encoder, audio, audio_note;
+  int frames_with_car = 0;
   WriteFileAtomically(c.out, [&](const std::filesystem::path& tmp) {
     capture::LibavVideoWriter writer(tmp, video);
     encoder = writer.codec_name();
@@ -104,7 +126,8 @@ int RunExport(ExportCommand& c) {
     for (int i = 0; i < frames; ++i) {
       if (i > 0 && script.empty()) scene.Cruise(dt);
       if (i > 0 && !script.empty()) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
-      const AugmentedFrame f = scene.Render(width, height, {}, i > 0 ? dt : 0);
+      const AugmentedFrame f = scene.Render(width, height, view, i > 0 ? dt : 0);
+      frames_with_car += f.car_pixels > 0;
       for (std::size_t p = 0; p < f.image.pixel_count(); ++p)
         for (int ch = 0; ch < 3; ++ch) {
           const float v = LinearToSrgb(std::clamp(f.image.rgb[3 * p + static_cast<std::size_t>(ch)], 0.f, 1.f));
@@ -122,9 +145,11 @@ int RunExport(ExportCommand& c) {
   });
   const double elapsed = SecondsSince(start);
   if (c.json) {
-    std::cout << nlohmann::json{{"output", c.out},    {"frames", frames},         {"size", {width, height}},
-                                {"fps", fps},         {"codec", encoder},         {"crf", c.crf},
-                                {"seconds", elapsed}, {"cruise", script.empty()}, {"audio", audio}}
+    std::cout << nlohmann::json{{"output", c.out},         {"frames", frames},
+                                {"size", {width, height}}, {"fps", fps},
+                                {"codec", encoder},        {"crf", c.crf},
+                                {"seconds", elapsed},      {"cruise", script.empty()},
+                                {"audio", audio},          {"frames_with_car", frames_with_car}}
                      .dump(2)
               << "\n";
   } else {
@@ -163,6 +188,9 @@ CommandFn AddExport(CLI::App* sub) {
   sub->add_option("--size", c->size, "WIDTHxHEIGHT (even)")->capture_default_str();
   sub->add_option("--frames", c->frames, "Frames to write (default: the path's duration)");
   sub->add_option("--fps", c->fps, "Frame rate (default: the video's)");
+  sub->add_option("--view", c->view,
+                  "YAW,PITCH[,FOV]: where the clip looks, in degrees turned from the car (positive: right, up), "
+                  "and its vertical field of view (default: at the car, 70)");
   sub->add_flag("--no-audio", c->no_audio, "Leave the clip silent (by default the video's sound is copied)");
   sub->add_flag("--json", c->json, "Print a JSON report");
   sub->add_option("--levels", s.lighting_levels, "Car light: HEALPix levels (1..6)")->capture_default_str();

@@ -208,7 +208,24 @@ TEST(RunPlayGL, ExportWritesAClipAtomically) {
   EXPECT_EQ(report["frames"].get<int>(), 2);
   EXPECT_EQ(report["codec"].get<std::string>(), "libx265");
   EXPECT_TRUE(report["cruise"].get<bool>());
+  EXPECT_EQ(report["frames_with_car"].get<int>(), 2);
   fs::remove(dir / "j.mkv");
+  // --view turns the clip from the car: looking back, no frame shows it.
+  const std::string base = "export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
+                           (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
+                           " --frames 2 --size 64x36 --json --out " + (dir / "v.mp4").string() + kSmall;
+  const auto back = RunOdvr(base + " --view 180,0,50");
+  ASSERT_EQ(back.exit_code, 0) << back.err;
+  EXPECT_EQ(nlohmann::json::parse(back.out)["frames_with_car"].get<int>(), 0);
+  const auto aside = RunOdvr(base + " --view 10,-5");
+  ASSERT_EQ(aside.exit_code, 0) << aside.err;
+  EXPECT_EQ(nlohmann::json::parse(aside.out)["frames_with_car"].get<int>(), 2);
+  fs::remove(dir / "v.mp4");
+  for (const char* bad : {"90", "0,95", "0,0,200", "a,b"}) {
+    const auto r_bad = RunOdvr(base + " --view " + bad);
+    EXPECT_EQ(r_bad.exit_code, 2) << bad;
+    EXPECT_NE(r_bad.err.find("--view"), std::string::npos) << r_bad.err;
+  }
   const std::string probe = "ffprobe -v error -select_streams v:0 -show_entries stream=codec_name -of csv=p=0 " +
                             out.string() + " > " + (dir / "codec.txt").string();
   ASSERT_EQ(std::system(probe.c_str()), 0);
