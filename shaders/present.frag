@@ -2,7 +2,7 @@
 // FramePresenter's GPU path: a renderer's linear composite (rows top first) times the exposure,
 // encoded as 8-bit sRGB into the window's back buffer, whose rows grow upward. The CPU path
 // (FramePresenter::Show of an image) encodes through a 4096-entry table: the two agree within one
-// step of 255 (tests/app/frame_presenter_test.cpp).
+// step of 255 (tests/app/player/frame_presenter_test.cpp).
 layout(binding = 0) uniform sampler2D uLinear;
 uniform float uExposure;
 uniform vec2 uTargetSize;  // the viewport, pixels

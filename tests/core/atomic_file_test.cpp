@@ -115,7 +115,7 @@ TEST(AtomicFile, ASetIsWrittenWholeOrNotAtAll) {
 
 // SIGTERM in the middle of a write: the handler removes the registered temporaries before the
 // process ends by the signal. A child process stands in for odvr (which installs the handler in
-// app/crash_report.cpp).
+// app/cli/crash_report.cpp).
 TEST(AtomicFile, RegisteredTemporariesAreRemovedByTheSignalHandler) {
   const fs::path dir = fs::temp_directory_path() / ("odvr_atomic_signal_" + std::to_string(::getpid()));
   fs::create_directories(dir / "set.tmp");

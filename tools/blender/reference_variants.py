@@ -50,7 +50,7 @@ def scores(img, ref, mask):
 
 
 def ground_stand_in(r, env, out_dir):
-    """The map with its lower half = 0.18 E / π (app/bench_render.cpp's ReplaceLowerHemisphereByGround)."""
+    """The map with its lower half = 0.18 E / π (app/cli/bench_render.cpp's ReplaceLowerHemisphereByGround)."""
     out = os.path.join(out_dir, "ground_" + os.path.basename(env))
     img = bpy.data.images.load(env, check_existing=False)
     w, h = img.size
