@@ -36,6 +36,7 @@ CommandFn AddBenchRender(CLI::App* sub);
 CommandFn AddBenchStitch(CLI::App* sub);
 CommandFn AddBenchReconstruct(CLI::App* sub);
 CommandFn AddBenchPlayer(CLI::App* sub);
+CommandFn AddBenchDecode(CLI::App* sub);
 
 // --cones (1, 7, 19 or 37) as the renderer's hexagonal rings (0-3); throws UsageError otherwise.
 int ConeRingsForCount(int cones);

@@ -18,6 +18,8 @@ CommandFn AddBench(CLI::App* sub) {
       {"player", "Player: the augmented frame budget (decode, lighting, render, composite) on the demo",
        AddBenchPlayer},
       {"render", "Renderer: error and SSIM against Cycles and time, beside a Monte-Carlo shader", AddBenchRender},
+      {"decode", "Video decoding: frames delivered, time per frame and where a seek lands, libav beside OpenCV",
+       AddBenchDecode},
   };
   auto runners = std::make_shared<std::vector<std::pair<CLI::App*, CommandFn>>>();
   for (const auto& k : kinds) {
