@@ -246,7 +246,8 @@ void WriteReport(const BenchDecodeOptions& o, const std::vector<DecodeRow>& rows
   WriteTextAtomically(fs::path(o.out_dir) / "decode.md", md.str());
 
   std::ostringstream gp;
-  gp << "set datafile separator '\\t'\nset datafile columnheaders\nset style data histogram\nset style histogram cluster gap 1\n"
+  gp << "set datafile separator '\\t'\nset datafile columnheaders\nset style data histogram\nset style histogram "
+        "cluster gap 1\n"
         "set style fill solid 0.8 border -1\nset ylabel 'ms per frame (median)'\nset xtics rotate by -20\n"
         "set key top left\nset grid ytics\n"
         "plot 'decode.tsv' using 4:xtic(1) title 'libav', '' using 7 title 'OpenCV VideoCapture'\n";
