@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # odvr set-up on Debian 12, as root (or with sudo). Idempotent: a second run reuses the build.
-#   scripts/setup.sh demo   install, build, play the default demo (media/demo, with the car)
+#   scripts/setup.sh demo   install, build the player alone, play the default demo (media/demo, with the car)
 #   scripts/setup.sh test   install, build, run every test
 #   scripts/setup.sh deps   install the Debian packages only
 #   scripts/setup.sh build  install and build
@@ -35,10 +35,11 @@ install_deps() {
   fi
 }
 
+# build [TARGET]: everything (the tests and benchmarks too), or only TARGET and what it needs.
 build() {
   # shellcheck disable=SC2086
   cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo ${ODVR_CMAKE_ARGS:-}
-  cmake --build "$BUILD_DIR" -j "$(nproc)"
+  cmake --build "$BUILD_DIR" -j "$(nproc)" ${1:+--target "$1"}
 }
 
 case "${1:-}" in
@@ -52,7 +53,7 @@ case "${1:-}" in
     ;;
   demo)
     install_deps
-    build
+    build odvr  # the player alone: the test binaries and benchmarks are the other command's
     # odvr with no arguments plays media/demo with its car: a window when there is a display,
     # PNG frames (and where they went) when there is none.
     "$BUILD_DIR"/app/odvr
