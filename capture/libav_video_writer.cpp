@@ -63,7 +63,7 @@ struct LibavVideoWriter::Impl {
   AVPacket* audio_packet = nullptr;
   std::int64_t audio_start_pts = 0;
   bool audio_ended = false;
-  std::string audio_codec, audio_note;
+  std::string audio_codec, audio_dropped;
 
   [[noreturn]] void Fail(const std::string& what, int code) const {
     throw Error(name, what + (code < 0 ? ": " + LibavErrorText(code) : std::string()));
@@ -139,7 +139,7 @@ struct LibavVideoWriter::Impl {
 
   // Opens options.audio_from's first audio stream and adds its copy to the output, before the
   // header is written. A source without audio, or with audio this container cannot hold, is
-  // not an error: the clip is silent and audio_note says why.
+  // not an error: the clip is silent (audio_dropped says why for the second).
   void OpenAudio() {
     const std::string source = options.audio_from;
     int rc = avformat_open_input(&audio_in, source.c_str(), nullptr, nullptr);
@@ -147,15 +147,12 @@ struct LibavVideoWriter::Impl {
     rc = avformat_find_stream_info(audio_in, nullptr);
     if (rc < 0) throw Error(source, "cannot read its streams: " + LibavErrorText(rc));
     audio_in_index = av_find_best_stream(audio_in, AVMEDIA_TYPE_AUDIO, -1, -1, nullptr, 0);
-    if (audio_in_index < 0) {
-      audio_note = "no audio stream in " + source;
-      return;
-    }
+    if (audio_in_index < 0) return;  // a recording without sound
     const AVStream* in = audio_in->streams[audio_in_index];
     const AVCodecID id = in->codecpar->codec_id;
     if (avformat_query_codec(format->oformat, id, FF_COMPLIANCE_NORMAL) != 1) {
-      audio_note = std::string("the ") + format->oformat->name + " container cannot hold " + avcodec_get_name(id) +
-                   " audio: the clip is silent (MP4, MOV or MKV take AAC)";
+      audio_dropped = std::string("the ") + format->oformat->name + " container cannot hold " + avcodec_get_name(id) +
+                      " audio: the clip is silent (MP4, MOV or MKV take AAC)";
       audio_in_index = -1;
       return;
     }
@@ -313,6 +310,6 @@ void LibavVideoWriter::Finish() {
 long LibavVideoWriter::frames_written() const { return impl_->frames; }
 const std::string& LibavVideoWriter::codec_name() const { return impl_->codec_name; }
 const std::string& LibavVideoWriter::audio_codec() const { return impl_->audio_codec; }
-const std::string& LibavVideoWriter::audio_note() const { return impl_->audio_note; }
+const std::string& LibavVideoWriter::audio_dropped() const { return impl_->audio_dropped; }
 
 }  // namespace odvr::capture

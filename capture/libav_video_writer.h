@@ -23,7 +23,7 @@ struct VideoWriterOptions {
   // Sound: the first audio stream of this file, copied as it is (no re-encoding), from
   // `audio_start_s` of it for as long as the video written lasts, so that a clip made from a
   // recording keeps the recording's sound in step with its pictures. Empty: silent. A file with
-  // no audio, or audio the container cannot hold, leaves the clip silent (audio_note() says why).
+  // no audio leaves the clip silent; so does audio the container cannot hold (audio_dropped() says so).
   std::string audio_from;
   double audio_start_s = 0;
   void Check() const;  // throws odvr::UsageError naming the field
@@ -50,10 +50,11 @@ class LibavVideoWriter {
   void Finish();
   long frames_written() const;
   const std::string& codec_name() const;  // libavcodec's encoder name: libx264, libx265, mjpeg
-  // The audio codec copied ("aac", "opus", ...), or "" when the clip is silent; then audio_note()
-  // says why when audio was asked for (no audio stream in it, a codec the container cannot hold).
+  // The audio codec copied ("aac", "opus", ...), or "" when the clip is silent.
   const std::string& audio_codec() const;
-  const std::string& audio_note() const;
+  // Why the source's audio was left out ("" when it was copied, or when the source has none): a
+  // codec the container cannot hold.
+  const std::string& audio_dropped() const;
 
  private:
   struct Impl;

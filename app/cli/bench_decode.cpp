@@ -86,8 +86,7 @@ DecodeRun RunLibav(const std::string& clip, long max_frames) {
   try {
     capture::LibavVideoReader reader(clip);
     std::vector<double> ms;
-    for (;;) {
-      if (run.frames >= max_frames) break;
+    while (run.frames < max_frames) {
       const auto t0 = SteadyClock::now();
       const auto frame = reader.Next();
       if (!frame) break;

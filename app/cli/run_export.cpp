@@ -109,19 +109,18 @@ int RunExport(ExportCommand& c) {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   std::vector<std::uint8_t> bgr(static_cast<std::size_t>(width) * height * 3);
-  std::string encoder, audio, audio_note;
+  std::string encoder, audio;
   int frames_with_car = 0;
   WriteFileAtomically(c.out, [&](const std::filesystem::path& tmp) {
     capture::LibavVideoWriter writer(tmp, video);
     encoder = writer.codec_name();
     audio = writer.audio_codec();
-    audio_note = writer.audio_note();
     // A recording without sound makes a silent clip as a matter of course; sound that cannot be
     // kept (a codec the container does not hold) is a loss to warn of.
-    if (audio_note.rfind("no audio stream", 0) == 0) {
-      spdlog::info("{}: silent: {}", c.out, audio_note);
-    } else if (!audio_note.empty()) {
-      spdlog::warn("{}: {}", c.out, audio_note);
+    if (!writer.audio_dropped().empty()) {
+      spdlog::warn("{}: {}", c.out, writer.audio_dropped());
+    } else if (!video.audio_from.empty() && audio.empty()) {
+      spdlog::info("{}: silent: {} has no sound", c.out, video.audio_from);
     }
     for (int i = 0; i < frames; ++i) {
       if (i > 0 && script.empty()) scene.Cruise(dt);

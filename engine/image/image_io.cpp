@@ -80,10 +80,12 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
   if (options.require_equirect && spec.width != 2 * spec.height)
     throw Error(name, "is " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
                           ": an equirectangular frame must be twice as wide as high");
-  if (static_cast<long long>(spec.width) * spec.height > options.max_pixels || spec.width > kMaxWidth)
-    throw Error(name, "is " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
-                          ": larger than the limit of " + std::to_string(options.max_pixels) + " pixels and " +
-                          std::to_string(kMaxWidth) + " wide");
+  const std::string size = std::to_string(spec.width) + "x" + std::to_string(spec.height);
+  if (static_cast<long long>(spec.width) * spec.height > options.max_pixels)
+    throw Error(name,
+                "is " + size + ": more than the " + std::to_string(options.max_pixels) + " pixels an image may have");
+  if (spec.width > kMaxWidth)
+    throw Error(name, "is " + size + ": wider than the " + std::to_string(kMaxWidth) + " pixels an image may be");
 
   int factor = 1;
   while (spec.width / factor > options.max_width) factor *= 2;
