@@ -17,6 +17,7 @@
 #include "core/timing.h"
 #include "tracking/central_pose.h"
 #include "tracking/ransac.h"
+#include "tracking/reconstruction_chunks.h"
 #include "tracking/triangulation.h"
 #include "tracking/trifocal.h"
 
@@ -141,6 +142,7 @@ class Reconstructor {
     Track(source);
     CheckTrifocal();
     BuildPoints();
+    SelectKeyFrames();
     Initialize();
     RegisterAll();
     Finish();
@@ -463,6 +465,12 @@ class Reconstructor {
       kept.push_back(std::move(p));
     }
     points_ = std::move(kept);
+    // Each frame's observations, in point order: registration, the frames two points share and
+    // triangulation look up a frame's points here instead of scanning every point.
+    frame_obs_.assign(used_.size(), {});
+    for (int i = 0; i < static_cast<int>(points_.size()); ++i)
+      for (int k = 0; k < static_cast<int>(points_[i].obs.size()); ++k)
+        frame_obs_[points_[i].obs[k].frame].emplace_back(i, k);
     segments_.clear();  // the trackers' images and tracks are no longer needed
     pieces_.clear();
     link_records_.clear();
@@ -482,19 +490,60 @@ class Reconstructor {
     return Ransac<RigRelativePoseEstimator>(ro, {&geometry_, focal_}).Estimate(pairs);
   }
 
-  // The points seen in both frames a and b, as bearing pairs (the same camera where it can be).
+  // The points seen in both frames a and b, as bearing pairs (the same camera where it can be), in
+  // point order.
   std::vector<RigBearingPair> SharedBearings(int a, int b) const {
+    std::unordered_map<int, const Obs*> in_b;
+    for (const auto& [i, k] : frame_obs_[b]) in_b.try_emplace(i, &points_[i].obs[k]);
     std::vector<RigBearingPair> pairs;
-    for (const auto& p : points_) {
-      const Obs* oa = nullptr;
-      const Obs* ob = nullptr;
-      for (const auto& o : p.obs) {
-        if (o.frame == a && !oa) oa = &o;
-        if (o.frame == b && (!ob || (oa && o.camera == oa->camera))) ob = &o;
-      }
-      if (oa && ob) pairs.push_back({oa->bearing, ob->bearing, oa->camera, ob->camera});
+    int last = -1;
+    for (const auto& [i, k] : frame_obs_[a]) {
+      if (i == last) continue;  // a's first observation of the point
+      last = i;
+      auto it = in_b.find(i);
+      if (it == in_b.end()) continue;
+      const Obs& oa = points_[i].obs[k];
+      const Obs* ob = it->second;
+      for (const auto& o : points_[i].obs)
+        if (o.frame == b && o.camera == oa.camera) ob = &o;
+      pairs.push_back({oa.bearing, ob->bearing, oa.camera, ob->camera});
     }
     return pairs;
+  }
+
+  // Distinct points a frame sees.
+  size_t PointsSeen(int f) const {
+    size_t n = 0;
+    int last = -1;
+    for (const auto& [i, k] : frame_obs_[f]) n += i != last, last = i;
+    return n;
+  }
+
+  // Frame 0 and every frame whose rays differ from the last key frame's by keyframe_parallax_deg
+  // (median, rotation taken out) or that still sees fewer than keyframe_min_shared of its points.
+  void SelectKeyFrames() {
+    const int frames = static_cast<int>(used_.size());
+    keys_ = {0};
+    if (!(options_.keyframe_parallax_deg > 0)) {
+      for (int f = 1; f < frames; ++f) keys_.push_back(f);
+      return;
+    }
+    int last = 0;
+    size_t last_seen = PointsSeen(0);
+    for (int f = 1; f < frames; ++f) {
+      const std::vector<RigBearingPair> pairs = SharedBearings(last, f);
+      bool key = static_cast<double>(pairs.size()) < options_.keyframe_min_shared * static_cast<double>(last_seen);
+      if (pairs.size() >= 8) {
+        const double parallax = RotationFreeParallaxDeg(pairs);
+        if (last == 0) selection_parallax_ = std::max(selection_parallax_, parallax);
+        key = key || parallax >= options_.keyframe_parallax_deg;
+      }
+      if (!key) continue;
+      keys_.push_back(f);
+      last = f;
+      last_seen = PointsSeen(f);
+    }
+    Log("key frames: " + std::to_string(keys_.size()) + " of " + std::to_string(frames));
   }
 
   // The first pair (a, b), b - a <= max_init_gap, whose rays differ by enough parallax once the
@@ -505,14 +554,18 @@ class Reconstructor {
     const int frames = static_cast<int>(used_.size());
     world_from_rig_.assign(frames, Rigid3());
     registered_.assign(frames, 0);
-    double best_parallax = 0;
+    interpolated_.assign(frames, 0);
+    double best_parallax = selection_parallax_;
     std::string why = "no later frame shares enough tracked points with frame 0";
     const int anchor_step = std::max(1, options_.max_init_gap / 2);
-    for (int a = 0; a + 1 < frames && init_frame_ < 0; a += anchor_step) {
-      const InitialPair tried = TryInitialPair(a, &best_parallax, &why);
+    const int keys = static_cast<int>(keys_.size());
+    for (int ka = 0; ka + 1 < keys && init_frame_ < 0; ka += anchor_step) {
+      const int a = keys_[ka];
+      const InitialPair tried = TryInitialPair(ka, &best_parallax, &why);
       if (tried.frame >= 0) {
         anchor_ = a;
         init_frame_ = tried.frame;
+        registration_order_ = {a, tried.frame};
         world_from_rig_[tried.frame] = tried.pose;
         registered_[a] = registered_[tried.frame] = 1;
       }
@@ -548,9 +601,12 @@ class Reconstructor {
     Rigid3 pose;  // anchor_from_frame
   };
 
-  InitialPair TryInitialPair(int a, double* best_parallax, std::string* why) {
-    const int frames = static_cast<int>(used_.size());
-    for (int j = a + 1; j < frames && j <= a + options_.max_init_gap; ++j) {
+  // Key frame ka against the next max_init_gap key frames.
+  InitialPair TryInitialPair(int ka, double* best_parallax, std::string* why) {
+    const int keys = static_cast<int>(keys_.size());
+    const int a = keys_[ka];
+    for (int kj = ka + 1; kj < keys && kj <= ka + options_.max_init_gap; ++kj) {
+      const int j = keys_[kj];
       const std::vector<RigBearingPair> pairs = SharedBearings(a, j);
       const std::string names = "frames " + std::to_string(used_[a].index) + " and " + std::to_string(used_[j].index);
       if (static_cast<int>(pairs.size()) < options_.min_init_inliers) {
@@ -671,44 +727,98 @@ class Reconstructor {
 
   // --- registration ----------------------------------------------------------------------------
 
+  // The key frames, outwards from the initial pair: those between it, before the anchor, after it.
   void RegisterAll() {
     const auto t0 = Clock::now();
-    const int frames = static_cast<int>(used_.size());
     if (standing_still_) return;
-    // Outwards from the initial pair: the frames between it, those before the anchor, after it.
+    const int keys = static_cast<int>(keys_.size());
+    const int ka = static_cast<int>(std::find(keys_.begin(), keys_.end(), anchor_) - keys_.begin());
+    const int kj = static_cast<int>(std::find(keys_.begin(), keys_.end(), init_frame_) - keys_.begin());
     std::vector<int> order;
-    for (int f = init_frame_ - 1; f > anchor_; --f) order.push_back(f);
-    for (int f = anchor_ - 1; f >= 0; --f) order.push_back(f);
-    for (int f = init_frame_ + 1; f < frames; ++f) order.push_back(f);
+    for (int k = kj - 1; k > ka; --k) order.push_back(keys_[k]);
+    for (int k = ka - 1; k >= 0; --k) order.push_back(keys_[k]);
+    for (int k = kj + 1; k < keys; ++k) order.push_back(keys_[k]);
     int since_bundle = 0, done = 2, inliers = 0;
     for (int f : order) {
       inliers += Register(f);
-      TriangulateNew(options_.min_triangulation_angle_deg);
+      registration_order_.push_back(f);
+      TriangulateNew(options_.min_triangulation_angle_deg, f);
       ++done;
-      Progress("registration", done, frames);
+      Progress("registration", done, keys);
       if (++since_bundle >= options_.bundle_every) {
-        BundleAdjust(20);
+        BundleAdjust(20, /*window=*/true);
         RemoveOutliers();
         if (!metric_) ApplyRoadScale("registration");
         since_bundle = 0;
       }
     }
     Stage("registration", t0, inliers,
-          "2D-3D inliers over " + std::to_string(order.size()) + " registered frames, " +
-              std::to_string(CountTriangulated()) + " points");
+          "2D-3D inliers over " + std::to_string(order.size()) + " registered key frames of " +
+              std::to_string(used_.size()) + ", " + std::to_string(CountTriangulated()) + " points");
+  }
+
+  // The frames between key frames, against the finished map; one that cannot be registered takes
+  // the pose interpolated between the registered frames around it (rotation by slerp, position
+  // linearly, by time).
+  void RegisterBetweenKeyFrames() {
+    const int frames = static_cast<int>(used_.size());
+    if (static_cast<int>(keys_.size()) == frames || standing_still_) return;
+    const auto t0 = Clock::now();
+    std::vector<int> failed;
+    int inliers = 0;
+    std::string why;
+    for (int f = 0; f < frames; ++f) {
+      if (registered_[f]) continue;
+      try {
+        inliers += Register(f);
+      } catch (const Error& e) {
+        if (why.empty()) why = e.what();
+        failed.push_back(f);
+      }
+    }
+    for (int f : failed) {
+      int before = f - 1, after = f + 1;
+      while (before >= 0 && !registered_[before]) --before;
+      while (after < frames && !registered_[after]) ++after;
+      world_from_rig_[f] = before < 0 ? world_from_rig_[after]
+                           : after >= frames
+                               ? world_from_rig_[before]
+                               : Interpolate(world_from_rig_[before], world_from_rig_[after],
+                                             Fraction(used_[before], used_[f], used_[after], before, f, after));
+      interpolated_[f] = 1;
+    }
+    for (int f : failed) registered_[f] = 1;
+    if (!failed.empty())
+      out_.warnings.push_back(std::to_string(failed.size()) + " frame(s) between key frames could not be registered (" +
+                              why + "): their poses are interpolated between the frames around them");
+    Stage("frames between key frames", t0, inliers,
+          "2D-3D inliers over " +
+              std::to_string(frames - static_cast<int>(keys_.size()) - static_cast<int>(failed.size())) +
+              " frames registered against the map, " + std::to_string(failed.size()) + " interpolated");
+  }
+
+  // Where f lies between frames a and b: by timestamp when they differ, else by frame number.
+  static double Fraction(const UsedFrame& a, const UsedFrame& f, const UsedFrame& b, int ia, int i, int ib) {
+    if (b.timestamp > a.timestamp)
+      return std::clamp((f.timestamp - a.timestamp) / (b.timestamp - a.timestamp), 0.0, 1.0);
+    return static_cast<double>(i - ia) / static_cast<double>(ib - ia);
+  }
+
+  static Rigid3 Interpolate(const Rigid3& a, const Rigid3& b, double t) {
+    Rigid3 r;
+    r.rotation = Eigen::Quaterniond(a.rotation).slerp(t, Eigen::Quaterniond(b.rotation)).toRotationMatrix();
+    r.translation = (1 - t) * a.translation + t * b.translation;
+    return r;
   }
 
   int Register(int f) {
     std::vector<RigBearingPoint> data;
     std::vector<std::pair<int, int>> where;  // (point, observation)
-    for (int i = 0; i < static_cast<int>(points_.size()); ++i) {
+    for (const auto& [i, k] : frame_obs_[f]) {
       const MapPoint& p = points_[i];
       if (!p.triangulated) continue;
-      for (int k = 0; k < static_cast<int>(p.obs.size()); ++k)
-        if (p.obs[k].frame == f) {
-          data.push_back({p.obs[k].bearing, p.obs[k].camera, p.x});
-          where.emplace_back(i, k);
-        }
+      data.push_back({p.obs[k].bearing, p.obs[k].camera, p.x});
+      where.emplace_back(i, k);
     }
     const std::string frame_name = "frame " + std::to_string(used_[f].index);
     if (static_cast<int>(data.size()) < options_.min_pose_inliers)
@@ -746,28 +856,45 @@ class Reconstructor {
     return agreeing;
   }
 
-  // Points with no position yet and inlier observations in two or more registered frames.
-  void TriangulateNew(double min_angle_deg) {
-    for (auto& p : points_) {
-      if (p.triangulated) continue;
-      std::vector<Eigen::Vector3d> bearings;
-      std::vector<CamFromWorld> poses;
-      std::set<int> frames;
-      for (const auto& o : p.obs) {
-        if (!registered_[o.frame] || !o.inlier) continue;
-        bearings.push_back(o.bearing);
-        poses.push_back(CamPose(geometry_, world_from_rig_[o.frame], o.camera));
-        frames.insert(o.frame);
-      }
-      if (frames.size() < 2) continue;
-      TriangulatedPoint t;
-      if (!TriangulateDlt(bearings, poses, &t)) continue;
-      if (!t.in_front || t.parallax_deg < min_angle_deg ||
-          t.max_angular_error_rad * focal_ > options_.ransac_threshold_px)
-        continue;
-      p.x = t.point;
-      p.triangulated = true;
+  // Points with no position yet and inlier observations in two or more registered frames; with
+  // `frame` >= 0 only the points that frame sees (the only ones its registration can complete),
+  // unless a bundle adjustment since the last call moved the poses (a point that failed may pass
+  // now) or an outlier removal took positions away.
+  void TriangulateNew(double min_angle_deg, int frame = -1) {
+    auto consider = [&](MapPoint& p) {
+      if (!p.triangulated) TriangulatePoint(min_angle_deg, &p);
+    };
+    if (frame < 0 || retry_all_points_) {
+      for (auto& p : points_) consider(p);
+      retry_all_points_ = false;
+      return;
     }
+    int last = -1;
+    for (const auto& [i, k] : frame_obs_[frame]) {
+      if (i != last) consider(points_[i]);
+      last = i;
+    }
+  }
+
+  void TriangulatePoint(double min_angle_deg, MapPoint* point) const {
+    MapPoint& p = *point;
+    std::vector<Eigen::Vector3d> bearings;
+    std::vector<CamFromWorld> poses;
+    std::set<int> frames;
+    for (const auto& o : p.obs) {
+      if (!registered_[o.frame] || !o.inlier) continue;
+      bearings.push_back(o.bearing);
+      poses.push_back(CamPose(geometry_, world_from_rig_[o.frame], o.camera));
+      frames.insert(o.frame);
+    }
+    if (frames.size() < 2) return;
+    TriangulatedPoint t;
+    if (!TriangulateDlt(bearings, poses, &t)) return;
+    if (!t.in_front || t.parallax_deg < min_angle_deg ||
+        t.max_angular_error_rad * focal_ > options_.ransac_threshold_px)
+      return;
+    p.x = t.point;
+    p.triangulated = true;
   }
 
   int CountTriangulated() const {
@@ -778,16 +905,26 @@ class Reconstructor {
 
   // --- bundle adjustment, outliers, scale ---------------------------------------------------------
 
-  BundleAdjustmentReport BundleAdjust(int max_iterations) {
+  // With `window`, only the last bundle_window registered key frames move, with the points they
+  // see; the frames before hold the gauge and the scale.
+  BundleAdjustmentReport BundleAdjust(int max_iterations, bool window = false) {
     BundleAdjustmentProblem problem;
     problem.rig = geometry_;
     problem.world_from_rig = world_from_rig_;
     problem.pose_constant.assign(world_from_rig_.size(), 0);
     problem.pose_constant[static_cast<size_t>(anchor_)] = 1;
+    const int held = static_cast<int>(registration_order_.size()) - options_.bundle_window;
+    window = window && options_.bundle_window > 0 && held >= 2;
+    std::vector<char> seen(window ? points_.size() : 0, 0);
+    if (window) {
+      for (int k = 0; k < held; ++k) problem.pose_constant[static_cast<size_t>(registration_order_[k])] = 1;
+      for (size_t k = static_cast<size_t>(held); k < registration_order_.size(); ++k)
+        for (const auto& [i, o] : frame_obs_[registration_order_[k]]) seen[i] = 1;
+    }
     std::vector<int> index_of(points_.size(), -1);
     for (int i = 0; i < static_cast<int>(points_.size()); ++i) {
       const MapPoint& p = points_[i];
-      if (!p.triangulated) continue;
+      if (!p.triangulated || (window && !seen[i])) continue;
       for (const auto& o : p.obs) {
         if (!registered_[o.frame] || !o.inlier) continue;
         if (index_of[i] < 0) {
@@ -797,7 +934,7 @@ class Reconstructor {
         problem.observations.push_back({o.frame, o.camera, index_of[i], o.bearing});
       }
     }
-    if (metric_ || geometry_.central()) {
+    if (!window && (metric_ || geometry_.central())) {
       // The registered frame farthest from the anchor keeps its distance: the scale the road gave
       // or, for a central camera (whose offsets fix no scale), the initial pair's unit.
       int far = -1;
@@ -827,6 +964,7 @@ class Reconstructor {
     for (size_t i = 0; i < points_.size(); ++i)
       if (index_of[i] >= 0) points_[i].x = problem.points[index_of[i]];
     last_bundle_ = report;
+    retry_all_points_ = true;
     Log("bundle adjustment: " + std::to_string(problem.observations.size()) + " observations, " +
         std::to_string(problem.points.size()) + " points, RMSE " + Fixed(report.initial_rmse_px, 3) + " -> " +
         Fixed(report.final_rmse_px, 3) + " px in " + std::to_string(report.iterations) + " iterations, " +
@@ -853,7 +991,10 @@ class Reconstructor {
           frames.insert(o.frame);
         }
       }
-      if (frames.size() < 2 || !p.x.allFinite()) p.triangulated = false;
+      if (frames.size() < 2 || !p.x.allFinite()) {
+        p.triangulated = false;
+        retry_all_points_ = true;
+      }
     }
     return removed;
   }
@@ -905,6 +1046,7 @@ class Reconstructor {
     Stage("bundle adjustment", t0, CountInlierObservations(),
           "inlier observations after " + std::to_string(removed) + " outliers removed, RMSE " +
               Fixed(last_bundle_.final_rmse_px, 3) + " px (bearing)");
+    RegisterBetweenKeyFrames();
 
     t0 = Clock::now();
     if (!(out_.rig_height_m > 0)) {
@@ -984,6 +1126,8 @@ class Reconstructor {
       f.index = used_[k].index;
       f.timestamp = used_[k].timestamp;
       f.world_from_rig = world_from_rig_[k];
+      f.key = standing_still_ || std::binary_search(keys_.begin(), keys_.end(), k);
+      f.interpolated = interpolated_[k] != 0;
       out_of_used[k] = static_cast<int>(out_.frames.size());
       out_.frames.push_back(f);
       for (; d < duplicates_.size() && duplicates_[d].duplicate_of == k; ++d) {
@@ -1080,6 +1224,13 @@ class Reconstructor {
   std::vector<MapPoint> points_;
   std::vector<Rigid3> world_from_rig_;
   std::vector<char> registered_;
+  std::vector<char> interpolated_;  // posed by interpolation between key frames
+  // frame_obs_[f]: (point, observation) of every observation of frame f, in point order.
+  std::vector<std::vector<std::pair<int, int>>> frame_obs_;
+  std::vector<int> keys_;                // key frames, ascending
+  double selection_parallax_ = 0;        // the largest parallax against frame 0 seen choosing them
+  std::vector<int> registration_order_;  // key frames as they were registered: the window's order
+  bool retry_all_points_ = false;        // poses moved or positions were removed: retry every point
   int init_inliers_ = 0;
   int anchor_ = 0;               // the initial pair's first frame: the world's origin until AlignToRoad
   int init_frame_ = -1;          // its second
@@ -1106,6 +1257,12 @@ void ReconstructionOptions::Check() const {
   if (!(min_triangulation_angle_deg > 0)) throw Error("min_triangulation_angle_deg", "must be > 0");
   if (!(max_reprojection_px > 0)) throw Error("max_reprojection_px", "must be > 0");
   if (bundle_every < 1) throw Error("bundle_every", "must be >= 1");
+  if (bundle_window < 0) throw Error("bundle_window", "must be >= 0");
+  if (!(keyframe_parallax_deg >= 0)) throw Error("keyframe_parallax_deg", "must be >= 0");
+  if (!(keyframe_min_shared >= 0 && keyframe_min_shared <= 1)) throw Error("keyframe_min_shared", "must be in [0, 1]");
+  if (chunk_overlap < 3) throw Error("chunk_overlap", "must be >= 3 (frames shared by two chunks)");
+  if (chunk_frames != 0 && chunk_frames < 4L * chunk_overlap)
+    throw Error("chunk_frames", "must be 0 (one piece) or at least 4 x chunk_overlap");
   if (!(trifocal_threshold_px > 0)) throw Error("trifocal_threshold_px", "must be > 0");
   if (!(trifocal_max_angle_deg > 0 && trifocal_max_angle_deg < 90))
     throw Error("trifocal_max_angle_deg", "must be in (0, 90): the virtual pinhole sees less than a hemisphere");
@@ -1124,7 +1281,13 @@ ReconstructionOptions OneCameraReconstructionOptions() {
 Reconstruction Reconstruct(const capture::Rig& rig, capture::Source& source, const ReconstructionOptions& options,
                            const ReconstructionCallbacks& callbacks) {
   options.Check();
-  return Reconstructor(rig, options, callbacks).Run(source);
+  if (options.chunk_frames == 0) return Reconstructor(rig, options, callbacks).Run(source);
+  ReconstructionOptions piece_options = options;
+  piece_options.max_frames = 0;  // each chunk's source ends where the chunk does
+  return ReconstructInChunks(source, options, callbacks,
+                             [&](capture::Source& chunk, const ReconstructionCallbacks& chunk_callbacks) {
+                               return Reconstructor(rig, piece_options, chunk_callbacks).Run(chunk);
+                             });
 }
 
 }  // namespace odvr::tracking

@@ -45,6 +45,26 @@ struct ReconstructionOptions {
   double min_triangulation_angle_deg = 1.0;
   double max_reprojection_px = 4.0;  // observations beyond it are outliers after bundle adjustment
   int bundle_every = 8;              // intermediate bundle adjustments after this many new frames
+  // Bundle adjustments while registering move only the last bundle_window key frames and the
+  // points they see, holding the rest: their cost stays flat along a long clip. The final
+  // adjustment moves every key frame. 0: every adjustment moves everything.
+  int bundle_window = 32;
+
+  // Key frames, chosen by parallax: a frame joins the map (triangulation, bundle adjustment) when
+  // the median angle between its rays and the last key frame's, rotation taken out, reaches
+  // keyframe_parallax_deg, or when it still sees fewer than keyframe_min_shared of the points the
+  // last key frame saw. Frames between key frames add no depth (a stop at a traffic light, a slow
+  // walk): they are posed against the finished map by absolute pose, and those that cannot be are
+  // interpolated between the key frames around them. 0: every frame is a key frame.
+  double keyframe_parallax_deg = 0.5;
+  double keyframe_min_shared = 0.5;
+
+  // A clip longer than chunk_frames frames is reconstructed in chunks of that many, each starting
+  // with the last chunk_overlap frames of the one before and chained to it by the similarity of
+  // those frames' poses: memory stays that of one chunk whatever the clip's length, time grows
+  // linearly with it, and no bundle adjustment spans two chunks. 0: the clip in one piece.
+  long chunk_frames = 200;
+  int chunk_overlap = 20;
 
   // Trifocal check (seed §5.3.2): per camera and per three consecutive frames, the tensor of the
   // tracks seen in all three is estimated by RANSAC and a track is split where its triple does
@@ -90,8 +110,10 @@ struct ReconstructedFrame {
   long index = 0;  // frame number of the images
   double timestamp = 0;
   Rigid3 world_from_rig;
-  int duplicate_of = -1;  // >= 0: identical images to that frame, which carries the estimate
-  int inliers = 0;        // 2D-3D observations that agree with the pose after bundle adjustment
+  int duplicate_of = -1;      // >= 0: identical images to that frame, which carries the estimate
+  int inliers = 0;            // 2D-3D observations that agree with the pose after bundle adjustment
+  bool key = true;            // a key frame: its pose comes from the bundle adjustment
+  bool interpolated = false;  // not registrable: its pose is interpolated between key frames
 };
 
 struct ReconstructionStage {

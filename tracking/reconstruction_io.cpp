@@ -56,6 +56,8 @@ std::string TrajectoryJson(const Reconstruction& r) {
                      {"world_yup_from_rig", Rows(YupFromZup() * f.world_from_rig.Matrix())},
                      {"inliers", f.inliers}};
     if (f.duplicate_of >= 0) j["duplicate_of_index"] = r.frames[f.duplicate_of].index;
+    j["key"] = f.key;
+    if (f.interpolated) j["interpolated"] = true;
     frames.push_back(j);
   }
   return nlohmann::json{{"pose", "world_from_rig (4x4 row-major, maps rig coords to world)"},
@@ -262,14 +264,20 @@ std::string ReconstructionSummaryJson(const Reconstruction& r) {
                     {"inlier_observations", k.inliers},
                     {"rejected_observations", k.rejected}});
   }
-  int duplicates = 0;
-  for (const auto& f : r.frames) duplicates += f.duplicate_of >= 0;
+  int duplicates = 0, keys = 0, interpolated = 0;
+  for (const auto& f : r.frames) {
+    duplicates += f.duplicate_of >= 0;
+    keys += f.key && f.duplicate_of < 0;
+    interpolated += f.interpolated;
+  }
   return nlohmann::json{{"rig", r.rig.path.string()},
                         {"frames", r.frames.size()},
                         {"first_index", r.frames.empty() ? 0 : r.frames.front().index},
                         {"last_index", r.frames.empty() ? 0 : r.frames.back().index},
                         {"dropped_frames", r.dropped_frames},
                         {"duplicate_frames", duplicates},
+                        {"key_frames", keys},
+                        {"interpolated_frames", interpolated},
                         {"cameras", cams},
                         {"mean_track_length", r.mean_track_length},
                         {"cross_camera_links", r.cross_camera_links},
