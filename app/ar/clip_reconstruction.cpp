@@ -28,6 +28,13 @@ void ClipInput::Check() const {
   if (track_width < 64 || track_width % 2 != 0) throw UsageError("--track-width", "must be even and >= 64");
   if (!(nadir_cap_deg >= 0 && nadir_cap_deg < 90)) throw UsageError("--nadir-cap", "must be in [0, 90) degrees");
   if (eye != 0 && eye != 1) throw UsageError("--eye", "must be 0 (top/left) or 1 (bottom/right)");
+  CheckChunkFrames(chunk_frames);
+}
+
+void CheckChunkFrames(long chunk_frames) {
+  const long least = 4L * tracking::ReconstructionOptions().chunk_overlap;
+  if (chunk_frames != 0 && chunk_frames < least)
+    throw UsageError("--chunk-frames", "must be 0 (the clip in one piece) or at least " + std::to_string(least));
 }
 
 namespace {
@@ -64,6 +71,7 @@ ClipReconstruction ReconstructClip(const ClipInput& in, const tracking::Reconstr
   options.rig_height_m = in.camera_height_m;
   options.max_frames = in.count;
   options.trifocal = in.trifocal;
+  options.chunk_frames = in.chunk_frames;
   if (callbacks.log) options.bundle.progress = callbacks.log;
   ClipReconstruction out;
   out.reconstruction = tracking::Reconstruct(capture::EquirectCameraRig(width, width / 2, in.camera_height_m),
@@ -127,9 +135,9 @@ fs::path CachedClipReconstruction(const ClipInput& in, bool* reused) {
     key += "|" + p.string() + "|" + std::to_string(size) + "|" + std::to_string(time);
   }
   char options[256];
-  std::snprintf(options, sizeof options, "|h%.6f|s%s|e%d|w%d|f%ld|c%ld|t%ld|n%.3f|%d", in.camera_height_m,
+  std::snprintf(options, sizeof options, "|h%.6f|s%s|e%d|w%d|f%ld|c%ld|t%ld|n%.3f|%d|k%ld", in.camera_height_m,
                 in.stereo ? capture::ToString(*in.stereo).c_str() : "auto", in.eye, in.track_width, in.first, in.count,
-                in.step, in.nadir_cap_deg, in.trifocal ? 1 : 0);
+                in.step, in.nadir_cap_deg, in.trifocal ? 1 : 0, in.chunk_frames);
   key += options;
   char hex[24];
   std::snprintf(hex, sizeof hex, "%016zx", std::hash<std::string>{}(key));

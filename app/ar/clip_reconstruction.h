@@ -21,6 +21,7 @@ struct ClipInput {
   long first = 0, count = 0, step = 1;
   double nadir_cap_deg = 20;
   bool trifocal = true;
+  long chunk_frames = tracking::ReconstructionOptions().chunk_frames;  // 0: the clip in one piece
   // Throws UsageError naming the option of the first bad field.
   void Check() const;
 };
@@ -32,6 +33,9 @@ struct ClipReconstruction {
 
 // Throws UsageError for a multi-camera source, odvr::Error for a clip it cannot read.
 ClipReconstruction ReconstructClip(const ClipInput& in, const tracking::ReconstructionCallbacks& callbacks);
+
+// Throws UsageError naming --chunk-frames unless it is 0 or long enough for chunks to overlap.
+void CheckChunkFrames(long chunk_frames);
 
 // Progress on stderr as odvr reconstruct prints it: a line that rewrites itself on a terminal,
 // a line per 10 frames in a log; stage lines and bundle adjustment iterations through `log`.

@@ -1,6 +1,7 @@
 // `odvr reconstruct`: offline structure from motion of the calibrated rig (tracking/
 // reconstruction.h) over per-camera image sequences; writes the trajectory, the COLMAP model, the
 // road plane and a summary into --out, and with --ground-truth also the trajectory errors.
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <spdlog/spdlog.h>
@@ -40,6 +41,7 @@ struct ReconstructCommand {
   std::string mask, stereo = "auto";
   int eye = 0, track_width = 1024;
   double nadir_cap_deg = 20;
+  long chunk_frames = tracking::ReconstructionOptions().chunk_frames;
 };
 
 std::unique_ptr<capture::Source> OpenFrames(const ReconstructCommand& c, const capture::Rig& rig) {
@@ -95,6 +97,7 @@ int RunReconstruct(ReconstructCommand c) {
     in.step = c.step;
     in.nadir_cap_deg = c.nadir_cap_deg;
     in.trifocal = !c.no_trifocal;
+    in.chunk_frames = c.chunk_frames;
     ClipReconstruction clip =
         ReconstructClip(in, c.json ? tracking::ReconstructionCallbacks() : ConsoleProgress(c.count));
     r = std::move(clip.reconstruction);
@@ -107,6 +110,8 @@ int RunReconstruct(ReconstructCommand c) {
     options.rig_height_m = c.rig_height_m;
     options.max_frames = c.count;
     options.trifocal = !c.no_trifocal;
+    options.chunk_frames = c.chunk_frames;
+    CheckChunkFrames(c.chunk_frames);
     const long total = c.count > 0 ? c.count : std::max(0L, source->frame_count() - c.first);
     tracking::ReconstructionCallbacks callbacks;
     if (!c.json) {
@@ -116,6 +121,11 @@ int RunReconstruct(ReconstructCommand c) {
     r = tracking::Reconstruct(rig, *source, options, callbacks);
   }
   if (!c.json && ::isatty(STDERR_FILENO)) std::fprintf(stderr, "\r\033[K");
+  // The process's peak resident memory so far: what a long clip costs (Linux reports kilobytes).
+  rusage usage{};
+  ::getrusage(RUSAGE_SELF, &usage);
+  const double peak_memory_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  extra["peak_memory_mb"] = peak_memory_mb;
   std::string evaluation_line;
   if (!c.ground_truth.empty()) {
     std::vector<tracking::TrajectoryPose> estimate;
@@ -145,8 +155,11 @@ int RunReconstruct(ReconstructCommand c) {
     for (const auto& w : r.warnings) std::cout << "warning: " << w << "\n";
     for (const auto& s : r.stages)
       std::printf("%-18s %8.2f s  %d %s\n", s.name.c_str(), s.seconds, s.inliers, s.what.c_str());
-    std::printf("reconstructed %zu frames, %zu points, reprojection RMSE %.3f px, scale x%.4f (%s) -> %s\n",
-                r.frames.size(), r.points.size(), r.rmse_px, r.scale_applied, r.scale_source.c_str(), c.out.c_str());
+    std::printf(
+        "reconstructed %zu frames, %zu points, reprojection RMSE %.3f px, scale x%.4f (%s), peak memory %.0f MB -> "
+        "%s\n",
+        r.frames.size(), r.points.size(), r.rmse_px, r.scale_applied, r.scale_source.c_str(), peak_memory_mb,
+        c.out.c_str());
     if (!evaluation_line.empty()) std::printf("against %s: %s\n", c.ground_truth.c_str(), evaluation_line.c_str());
   }
   return 0;
@@ -183,6 +196,10 @@ CommandFn AddReconstruct(CLI::App* sub) {
   sub->add_option("--rig-height", c->rig_height_m, "Rig height above the road in metres (default: the rig file's)");
   sub->add_option("--ground-truth", c->ground_truth,
                   "trajectory_gt.json to evaluate against (ATE, RPE, scale error; added to summary.json)");
+  sub->add_option("--chunk-frames", c->chunk_frames,
+                  "A longer clip is reconstructed in chunks of this many frames, each chained to the one before by "
+                  "the frames they share: memory stays that of one chunk (0: in one piece)")
+      ->capture_default_str();
   sub->add_flag("--no-trifocal", c->no_trifocal,
                 "Skip the trifocal check of the tracks (faster; the bundle adjustment's outlier test remains)");
   sub->add_flag("--json", c->json, "Print the summary as JSON (no progress output)");

@@ -119,6 +119,9 @@ TEST(RunReconstructGL, OneCameraClipToTumTrajectoryThatPlayReads) {
               j["evaluation"]["ate_percent_of_path"].get<double>(),
               j["evaluation"]["scale_error_percent"].get<double>(), j["points"].get<int>());
   EXPECT_EQ(j["frames"].get<int>(), 24) << "every frame posed";
+  EXPECT_EQ(j["key_frames"].get<int>(), 24) << "a car at 9 m/s: every frame adds parallax";
+  EXPECT_EQ(j["interpolated_frames"].get<int>(), 0);
+  EXPECT_GT(j["peak_memory_mb"].get<double>(), 0);
   EXPECT_EQ(j["input"]["layout"], "mono");
   EXPECT_TRUE(j["input"]["metric"].get<bool>());
   EXPECT_LT(j["evaluation"]["ate_percent_of_path"].get<double>(), 0.5);
@@ -140,6 +143,10 @@ TEST(RunReconstruct, OneCameraNeedsAClipAndRefusesRigOptions) {
   const CliRun none = RunOdvr("reconstruct --camera-height 1.5");
   EXPECT_EQ(none.exit_code, 2);
   EXPECT_NE(none.err.find("--video"), std::string::npos) << none.err;
+  const CliRun chunks = RunOdvr("reconstruct --video x.mp4 --chunk-frames 10");
+  EXPECT_EQ(chunks.exit_code, 2);
+  EXPECT_NE(chunks.err.find("--chunk-frames: must be 0 (the clip in one piece) or at least 80"), std::string::npos)
+      << chunks.err;
   const CliRun mixed = RunOdvr("reconstruct --rig x.json --camera-height 1.5");
   EXPECT_EQ(mixed.exit_code, 2);
   EXPECT_NE(mixed.err.find("--rig-height"), std::string::npos) << mixed.err;
