@@ -59,6 +59,7 @@ struct BenchReconstructOptions {
   bool equirect = false;  // one 360° camera: bench_reconstruct_equirect.cpp
   int crf = 23, track_width = 1024;
   long clip_frames = 60;
+  long long_frames = 600;
   std::string colmap = "colmap";
   std::string out_dir = kBenchOutDir;
 };
@@ -257,6 +258,7 @@ int RunBenchReconstruct(const BenchReconstructOptions& o) {
     e.crf = o.crf;
     e.width = o.track_width;
     e.clip_frames = o.clip_frames;
+    e.long_frames = o.long_frames;
     return RunBenchReconstructEquirect(e);
   }
   if (o.no_colmap && o.colmap_only) throw UsageError("--no-colmap", "contradicts --colmap-only");
@@ -351,6 +353,10 @@ CommandFn AddBenchReconstruct(CLI::App* sub) {
   sub->add_option("--crf", o->crf, "--equirect: H.264 quality of the videos made")->capture_default_str();
   sub->add_option("--track-width", o->track_width, "--equirect: tracking width")->capture_default_str();
   sub->add_option("--clip-frames", o->clip_frames, "--equirect: frames of each real clip")->capture_default_str();
+  sub->add_option("--long-frames", o->long_frames,
+                  "--equirect: the long clip's length, also run at a third of it, for time and memory against "
+                  "length (0: none)")
+      ->capture_default_str();
   return [o] { return RunBenchReconstruct(*o); };
 }
 

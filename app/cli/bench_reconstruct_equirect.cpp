@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "app/cli/bench_common.h"
+#include "app/cli/bench_long_clip.h"
 #include "app/cli/bench_sfm.h"
 #include "capture/equirect_view.h"
 #include "capture/stitcher.h"
@@ -31,21 +32,6 @@ namespace fs = std::filesystem;
 constexpr int kMatchFrames = 3;      // COLMAP's sequential overlap, in frames (as the rig bench)
 constexpr double kNadirCapDeg = 20;  // odvr reconstruct's default
 constexpr const char* kStem = "tracking_equirect";
-
-void RunFfmpeg(const std::string& args, const std::string& what) {
-  const std::string cmd = "ffmpeg -hide_banner -loglevel error -nostdin -y " + args;
-  const int status = std::system(cmd.c_str());
-  if (status != 0) throw Error("ffmpeg", what + " failed (exit status " + std::to_string(status) + "): " + cmd);
-}
-
-// Frames dir/%06d.png (0 .. frames-1) as an H.264 video at 25 fps, crf `crf`, yuv420p.
-fs::path EncodeH264(const fs::path& frames_dir, long frames, int crf, const fs::path& out) {
-  RunFfmpeg("-framerate 25 -start_number 0 -i " + ShellQuote((frames_dir / "%06d.png").string()) + " -frames:v " +
-                std::to_string(frames) + " -c:v libx264 -preset medium -crf " + std::to_string(crf) +
-                " -pix_fmt yuv420p " + ShellQuote(out.string()),
-            "encoding " + frames_dir.string());
-  return out;
-}
 
 // The rig's images stitched by odvr (CPU) at width x width/2, written as PNG frames.
 void StitchRig(const fs::path& dataset, const capture::Rig& rig, long frames, int width, const fs::path& out) {
@@ -198,8 +184,8 @@ std::string Targets(const Results& r, const std::vector<std::string>& inputs) {
   return md.str();
 }
 
-void WriteEquirectReport(const Results& r, const std::vector<ClipRow>& clips, const std::vector<std::string>& inputs,
-                         const EquirectBenchOptions& o) {
+void WriteEquirectReport(const Results& r, const std::vector<ClipRow>& clips, const std::vector<LongClipRow>& long_rows,
+                         const std::vector<std::string>& inputs, const EquirectBenchOptions& o) {
   const fs::path dir = o.out_dir;
   fs::create_directories(dir);
   WriteResults(r, dir, kStem);
@@ -210,10 +196,13 @@ void WriteEquirectReport(const Results& r, const std::vector<ClipRow>& clips, co
      << " frames at 25 fps. The inputs a user would have, made from it:\n\n"
      << "- `gt H.264`: its ground-truth equirect panoramas encoded by ffmpeg (libx264, crf " << o.crf
      << ", yuv420p): compression alone.\n"
-     << "- `stitched H.264`: its six fisheyes stitched by odvr's stitcher (CPU, " << o.width << "×" << o.width / 2
-     << "), encoded the same way: seams, exposure steps and the stitcher's parallax.\n"
-     << "- `stitched H.264 at " << 2 * o.width << "`: the same stitched at " << 2 * o.width << "×" << o.width
-     << " and tracked at that width (odvr alone): what the tracking width trades, speed against error.\n\n"
+     << "- `stitched H.264`: its six fisheyes stitched by odvr's stitcher (CPU) at `odvr stitch`'s default size, "
+     << capture::StitchOptions().width << "×" << capture::StitchOptions().height
+     << ", encoded the same way: seams, exposure steps and the stitcher's parallax. odvr tracks it at " << o.width
+     << " wide, as it does a consumer camera's 5.7K clip.\n"
+     << "- `stitched H.264 tracked at " << capture::StitchOptions().width
+     << "`: the same video tracked at its full width (odvr alone): what the tracking width trades, speed against "
+        "error.\n\n"
      << "Methods, each timed from the video on disk to the poses, on all cores:\n\n"
      << "- `odvr`: `odvr reconstruct --video` as a user runs it: frames scaled to " << o.width
      << " wide, one equirect camera (central solvers), a " << kNadirCapDeg
@@ -247,6 +236,7 @@ void WriteEquirectReport(const Results& r, const std::vector<ClipRow>& clips, co
   for (const auto& c : clips)
     md << "| " << c.clip << " | " << c.layout << " | " << Num(c.seconds, 1) << " | " << c.posed << "/" << c.frames
        << " | " << c.points << " | " << Num(c.rmse_px, 3) << " | " << c.note << " |\n";
+  if (!long_rows.empty()) md << LongClipSection(long_rows, o.crf);
   md << "\nTime per stage (seconds):\n\n| method | stage | seconds | |\n|---|---|---|---|\n";
   for (const auto& s : r.stages)
     md << "| " << s.method << " | " << s.stage << " | " << Num(s.seconds, 2) << " | " << s.detail << " |\n";
@@ -261,6 +251,8 @@ void WriteEquirectReport(const Results& r, const std::vector<ClipRow>& clips, co
 int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
   if (o.width < 256 || o.width % 8 != 0) throw UsageError("--track-width", "must be a multiple of 8, at least 256");
   if (o.crf < 0 || o.crf > 51) throw UsageError("--crf", "must be in 0..51");
+  if (o.long_frames != 0 && o.long_frames < 9)
+    throw UsageError("--long-frames", "must be 0 (no long clip) or at least 9 (its third is reconstructed too)");
   const fs::path dataset = o.dataset;
   if (!fs::exists(dataset / "rig.json") || !fs::is_directory(dataset / "pano"))
     throw UsageError("--dataset", dataset.string() + " has no rig.json and pano/ (is ../shared/data present?)");
@@ -282,30 +274,27 @@ int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
       fs::remove_all(dir, ec);
     }
   } cleanup{work};
-  BenchProgress overall("bench reconstruct --equirect", 3 + (o.no_colmap ? 0 : 8));
-  // The speed/accuracy trade of the tracking width: the rig stitched at twice the width and
-  // tracked there too, a row of odvr alone (COLMAP's cost is the cube faces, not this).
+  BenchProgress overall("bench reconstruct --equirect", 3 + (o.no_colmap ? 0 : 8) + (o.long_frames > 0 ? 1 : 0));
+  // (b) is the rig stitched as `odvr stitch` makes it by default (StitchOptions' size), then
+  // tracked at --track-width, as a user's 5.7K clip is; a second row tracks it at the stitched
+  // width: the speed/accuracy trade of the tracking width (odvr alone: COLMAP's cost is the
+  // cube faces, not this).
   struct Input {
     std::string label;
     fs::path video;
     int width = 0;
     bool colmap = true;
   };
-  const int wide = 2 * o.width;
-  const std::vector<Input> inputs = {
+  const int stitched_width = capture::StitchOptions().width;
+  const fs::path stitched = [&] {
+    StitchRig(dataset, rig, frames, stitched_width, work / "stitched");
+    return EncodeH264(work / "stitched", frames, o.crf, work / "stitched.mp4");
+  }();
+  std::vector<Input> inputs = {
       {"gt H.264", EncodeH264(dataset / "pano", frames, o.crf, work / "gt.mp4"), o.width, true},
-      {"stitched H.264",
-       [&] {
-         StitchRig(dataset, rig, frames, o.width, work / "stitched");
-         return EncodeH264(work / "stitched", frames, o.crf, work / "stitched.mp4");
-       }(),
-       o.width, true},
-      {fmt::format("stitched H.264 at {}", wide),
-       [&] {
-         StitchRig(dataset, rig, frames, wide, work / "stitched_wide");
-         return EncodeH264(work / "stitched_wide", frames, o.crf, work / "stitched_wide.mp4");
-       }(),
-       wide, false}};
+      {"stitched H.264", stitched, o.width, true}};
+  if (stitched_width != o.width)
+    inputs.push_back({fmt::format("stitched H.264 tracked at {}", stitched_width), stitched, stitched_width, false});
   overall.Step("inputs encoded");
 
   Results results;
@@ -338,7 +327,12 @@ int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
   const fs::path video360 = dataset.parent_path() / "video360";
   for (const char* clip : {"gopro_max_moving", "iceland0.ts", "testRoom1_1920Mono.mp4", "congo.mp4"})
     if (fs::exists(video360 / clip)) clips.push_back(RunClip(video360 / clip, o.width, o.clip_frames));
-  WriteEquirectReport(results, clips, labels, o);
+  std::vector<LongClipRow> long_rows;
+  if (o.long_frames > 0) {
+    long_rows = RunLongClips(dataset, truth, {o.long_frames / 3, o.long_frames}, o.crf, height, work);
+    overall.Step("the long clip");
+  }
+  WriteEquirectReport(results, clips, long_rows, labels, o);
   for (const auto& m : results.rows)
     std::cout << fmt::format("{}: {} s, {}/{} frames posed, ATE {} m ({} %), scale error {} %\n", m.method,
                              Num(m.seconds, 1), m.frames_posed, m.frames, Num(m.ate_m, 4), Num(m.ate_percent, 3),
@@ -346,6 +340,12 @@ int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
   for (const auto& c : clips)
     std::cout << fmt::format("{} ({}): {}/{} frames posed, RMSE {} px, {} s{}\n", c.clip, c.layout, c.posed, c.frames,
                              Num(c.rmse_px, 3), Num(c.seconds, 1), c.note.empty() ? "" : "; " + c.note);
+  for (const auto& l : long_rows)
+    std::cout << fmt::format(
+        "long clip, {} frames: {} s, {}/{} posed, {} key frames, {} chunk(s), peak {} MB, ATE {} % "
+        "{}\n",
+        l.frames, Num(l.seconds, 1), l.posed, l.frames, l.key_frames, l.chunks, Num(l.peak_memory_mb, 0),
+        Num(l.ate_percent, 3), l.note);
   std::cout << "bench reconstruct --equirect: wrote " << o.out_dir << "/" << kStem << ".md, .tsv, .png\n";
   return 0;
 }

@@ -181,9 +181,10 @@ struct EquirectBenchOptions {
   std::string dataset, colmap = "colmap", out_dir;
   long frames = 0;  // 0: every frame of the ground truth
   bool no_colmap = false, keep_workspace = false;
-  int crf = 23;           // H.264 quality of the videos made
-  int width = 1024;       // tracking width (and the stitched panorama's)
-  long clip_frames = 60;  // frames of each real clip
+  int crf = 23;            // H.264 quality of the videos made
+  int width = 1024;        // tracking width (and the stitched panorama's)
+  long clip_frames = 60;   // frames of each real clip
+  long long_frames = 600;  // the long clip's length (0: no long clip); also run at a third of it
 };
 int RunBenchReconstructEquirect(const EquirectBenchOptions& o);
 

@@ -163,12 +163,15 @@ TEST(BenchReconstruct, MissingColmapDatasetOrTableIsAClearError) {
 }
 
 // --equirect on the first 8 frames, odvr alone: the panoramas and the stitched rig as H.264,
-// each with and without the camera height, the rig mode beside them, and the real clips.
+// each with and without the camera height, the rig mode beside them, the real clips, and the long
+// clip (the panoramas to and fro) reconstructed at two lengths by odvr reconstruct.
 TEST(BenchReconstruct, EquirectRowsForBothVideosAndTheRigWithTheirTargets) {
   if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
   const ScratchDir t{"odvr_bench_equirect"};
-  const CliRun r = RunOdvr("bench reconstruct --equirect --frames 8 --no-colmap --clip-frames 4 --dataset " +
-                           kStreet.string() + " --out " + t.dir.string());
+  const CliRun r = RunOdvr(
+      "bench reconstruct --equirect --frames 8 --no-colmap --clip-frames 4 --long-frames 24 "
+      "--dataset " +
+      kStreet.string() + " --out " + t.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::printf("%s", r.out.c_str());
   const auto rows = ReadTsv(t.dir / "tracking_equirect.tsv");
@@ -186,6 +189,9 @@ TEST(BenchReconstruct, EquirectRowsForBothVideosAndTheRigWithTheirTargets) {
   const std::string md = ReadText(t.dir / "tracking_equirect.md");
   EXPECT_NE(md.find("## Targets"), std::string::npos);
   EXPECT_NE(md.find("## Real clips"), std::string::npos);
+  EXPECT_NE(md.find("## A long clip"), std::string::npos);
+  EXPECT_NE(md.find("| 8 | "), std::string::npos) << "a third of it";
+  EXPECT_NE(md.find("| 24/24 | 24 | 1 | "), std::string::npos) << "every frame posed, each a key frame, one chunk";
   EXPECT_TRUE(fs::exists(t.dir / "tracking_equirect_paths.tsv"));
 }
 
