@@ -1,12 +1,17 @@
 #include "engine/image/image_io.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -172,28 +177,73 @@ std::vector<float> LoadAlpha(const std::filesystem::path& path, int* width, int*
   return alpha;
 }
 
+namespace {
+
+// Writes `bytes` to `path`, every call checked: a short write (a full disk, a file size limit with
+// SIGXFSZ ignored) or a failed close is an error naming `name`, the output the user asked for.
+void WriteBytes(const std::filesystem::path& path, const std::vector<unsigned char>& bytes, const std::string& name) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd < 0) throw Error(name, std::string("cannot write: ") + std::strerror(errno));
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string why = n < 0 ? std::strerror(errno) : "no byte written";
+      ::close(fd);
+      throw Error(name, "cannot write (disk full?): " + why);
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  if (::close(fd) != 0) throw Error(name, std::string("cannot write (disk full?): ") + std::strerror(errno));
+}
+
+// Reads the whole file back: for a writer that cannot encode into memory, the only way to learn
+// that its file came out short, since OpenImageIO's writers report success after a short write.
+void CheckReadable(const std::filesystem::path& tmp, const std::string& name) {
+  auto in = OIIO::ImageInput::open(tmp.string());
+  bool ok = in != nullptr;
+  if (ok) {
+    const OIIO::ImageSpec& spec = in->spec();
+    std::vector<float> pixels(static_cast<std::size_t>(spec.width) * spec.height * spec.nchannels);
+    ok = in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, pixels.data()) && in->geterror().empty();
+  }
+  if (!ok) throw Error(name, "cannot write: the file written does not read back whole (disk full?)");
+}
+
+}  // namespace
+
 void SaveImage(const std::filesystem::path& path, const sphere::EquirectImage& image) {
-  if (image.empty()) throw Error(path.string(), "refusing to write an empty image");
+  const std::string name = path.string();
+  if (image.empty()) throw Error(name, "refusing to write an empty image");
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
   const bool hdr = ext == ".exr" || ext == ".hdr";
+  std::vector<unsigned char> bytes;
+  if (!hdr) {
+    bytes.resize(image.rgb.size());
+    for (std::size_t i = 0; i < bytes.size(); ++i)
+      bytes[i] = static_cast<unsigned char>(std::lround(LinearToSrgb(image.rgb[i]) * 255.0f));
+  }
+  const OIIO::TypeDesc type = hdr ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8;
+  const void* pixels = hdr ? static_cast<const void*>(image.rgb.data()) : static_cast<const void*>(bytes.data());
   WriteFileAtomically(path, [&](const std::filesystem::path& tmp) {
     auto out = OIIO::ImageOutput::create(tmp.string());
-    if (!out) throw Error(path.string(), "no writer for '" + ext + "'");
-    if (hdr) {
-      OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::FLOAT);
-      if (!out->open(tmp.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, image.rgb.data()))
-        throw Error(path.string(), "cannot write: " + out->geterror());
-    } else {
-      std::vector<unsigned char> bytes(image.rgb.size());
-      for (std::size_t i = 0; i < bytes.size(); ++i)
-        bytes[i] = static_cast<unsigned char>(std::lround(LinearToSrgb(image.rgb[i]) * 255.0f));
-      OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
-      if (!out->open(tmp.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()))
-        throw Error(path.string(), "cannot write: " + out->geterror());
-    }
-    // The encoder flushes its last blocks on close: a full disk shows there.
-    if (!out->close()) throw Error(path.string(), "cannot write: " + out->geterror());
+    if (!out) throw Error(name, "no writer for '" + ext + "'");
+    // OpenImageIO's writers (PNG among them) ignore a short write and report success, so the file
+    // is encoded into memory where the format allows and written here, every write checked.
+    std::vector<unsigned char> encoded;
+    OIIO::Filesystem::IOVecOutput memory(encoded);
+    const bool in_memory = out->supports("ioproxy") && out->set_ioproxy(&memory);
+    const OIIO::ImageSpec spec(image.width, image.height, 3, type);
+    if (!out->open(tmp.string(), spec) || !out->write_image(type, pixels))
+      throw Error(name, "cannot write: " + out->geterror());
+    // The encoder flushes its last blocks on close.
+    if (!out->close()) throw Error(name, "cannot write: " + out->geterror());
+    if (in_memory)
+      WriteBytes(tmp, encoded, name);
+    else
+      CheckReadable(tmp, name);
   });
 }
 

@@ -1,10 +1,17 @@
 #include "engine/image/image_io.h"
 
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include "core/error.h"
 
@@ -160,6 +167,53 @@ TEST_F(ImageIo, ATruncatedJpegIsRefusedNotFilledWithGrey) {
   const std::string error = ErrorOf(dir_ / "cut.jpg");
   EXPECT_NE(error.find("cut.jpg: truncated"), std::string::npos) << error;
   EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+}
+
+// A full disk, stood in for by a file size limit with SIGXFSZ ignored (odvr ignores it, so an
+// over-limit write fails with EFBIG): OpenImageIO's PNG writer reported success after the short
+// write, and the truncated file replaced the good one. Now the write fails naming the output, the
+// good file is kept and no temporary is left. Written and checked in a child process of its own
+// (the limit is the whole process's; OpenImageIO's threads rule out a plain fork), which exits 3
+// when every check holds.
+void WriteOverTheFileSizeLimitAndCheck(const fs::path& dir, const std::string& ext) {
+  const auto bytes_of = [](const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const fs::path target = dir / ("out" + ext);
+  SaveImage(target, sphere::EquirectImage(4, 2, 0.25f));
+  const std::string good = bytes_of(target);
+  sphere::EquirectImage noise(256, 128);  // tens of KiB in either format
+  unsigned state = 4321;
+  for (float& v : noise.rgb) {
+    state = state * 1103515245u + 12345u;
+    v = static_cast<float>((state >> 16) & 0xff) / 255.0f;
+  }
+  ::signal(SIGXFSZ, SIG_IGN);
+  rlimit limit;
+  limit.rlim_cur = limit.rlim_max = 16384;
+  ::setrlimit(RLIMIT_FSIZE, &limit);
+  std::string error = "no error";
+  try {
+    SaveImage(target, noise);
+  } catch (const Error& e) {
+    error = e.what();
+  }
+  int entries = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++entries;
+  const bool kept = bytes_of(target) == good;
+  std::fprintf(stderr, "%s; old file kept: %d; entries: %d\n", error.c_str(), kept, entries);
+  fs::remove_all(dir);
+  std::_Exit(kept && entries == 1 ? 3 : 4);
+}
+
+TEST_F(ImageIo, AShortWriteFailsNamingTheOutputAndKeepsTheOldFile) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  for (const std::string ext : {".png", ".exr"})
+    EXPECT_EXIT(WriteOverTheFileSizeLimitAndCheck(dir_, ext), ::testing::ExitedWithCode(3),
+                "odvr_image_[0-9]+AShortWriteFailsNamingTheOutputAndKeepsTheOldFile/out\\" + ext +
+                    ": cannot write .*; old file kept: 1; entries: 1")
+        << ext;
 }
 
 }  // namespace
