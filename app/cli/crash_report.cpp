@@ -55,10 +55,14 @@ void OnFatalSignal(int sig) {
   raise(sig);
 }
 
-// SIGINT/SIGTERM: the temporaries of unfinished atomic writes go, then the default action
-// (SA_RESETHAND restored it), so the process still ends by the signal.
+// SIGINT, SIGTERM, SIGHUP (the terminal closed), SIGQUIT: the temporaries of unfinished atomic
+// writes go, then the default action, so the process still ends by the signal.
 void OnInterrupt(int sig) {
   RemoveTemporaryFiles();
+  struct sigaction fallback {};
+  fallback.sa_handler = SIG_DFL;
+  sigemptyset(&fallback.sa_mask);
+  sigaction(sig, &fallback, nullptr);
   ::raise(sig);
 }
 
@@ -78,13 +82,19 @@ void InstallInterruptCleanup() {
   struct sigaction interrupt {};
   interrupt.sa_handler = OnInterrupt;
   sigemptyset(&interrupt.sa_mask);
-  interrupt.sa_flags = SA_RESETHAND;
   // A signal ignored when odvr started (nohup, a background job) stays ignored.
-  for (int sig : {SIGINT, SIGTERM}) {
+  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
     struct sigaction before {};
     if (sigaction(sig, nullptr, &before) == 0 && before.sa_handler == SIG_IGN) continue;
     sigaction(sig, &interrupt, nullptr);
   }
+  // A write past the file size limit (ulimit -f) would kill the process with SIGXFSZ and leave its
+  // temporary behind; ignored, the write fails with EFBIG and takes the normal error path: the
+  // temporary removed, the old file kept, a message naming the output and a non-zero exit.
+  struct sigaction ignore {};
+  ignore.sa_handler = SIG_IGN;
+  sigemptyset(&ignore.sa_mask);
+  sigaction(SIGXFSZ, &ignore, nullptr);
 }
 
 }  // namespace odvr::app

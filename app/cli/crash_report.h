@@ -6,8 +6,10 @@
 namespace odvr::app {
 
 void InstallCrashReport();
-// SIGINT and SIGTERM remove the temporaries of unfinished atomic writes, then end the process by
-// the signal. Installed in every build (the crash report is left to a sanitizer where there is one).
+// SIGINT, SIGTERM, SIGHUP and SIGQUIT remove the temporaries of unfinished atomic writes, then end
+// the process by the signal; SIGXFSZ is ignored, so a write past the file size limit fails (EFBIG)
+// like one on a full disk. Installed in every build (the crash report is left to a sanitizer where
+// there is one).
 void InstallInterruptCleanup();
 
 }  // namespace odvr::app

@@ -1,14 +1,22 @@
 #include "app/cli/crash_report.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
+
+#include "core/atomic_file.h"
 
 namespace {
 
@@ -27,6 +35,55 @@ TEST(CrashReport, FatalSignalPrintsItsNameAndTheStackThenEndsWithIt) {
         raise(SIGFPE);
       },
       testing::KilledBySignal(SIGFPE), "odvr: fatal signal 8 \\(SIGFPE\\)");
+}
+
+// SIGHUP (the terminal closed) and SIGQUIT remove the temporaries as SIGINT and SIGTERM do, and the
+// process still ends by the signal.
+TEST(CrashReport, HangUpAndQuitRemoveTheTemporaries) {
+  // Forked here (not re-run, as "threadsafe" would, under another pid): the child sees these paths.
+  GTEST_FLAG_SET(death_test_style, "fast");
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("odvr_hangup_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  for (int sig : {SIGHUP, SIGQUIT}) {
+    const std::filesystem::path tmp = dir / (".out.tmp" + std::to_string(sig) + ".png");
+    std::ofstream(tmp) << "half";
+    EXPECT_EXIT(
+        {
+          rlimit no_core;  // SIGQUIT's default action dumps core: not into the test's folder
+          no_core.rlim_cur = no_core.rlim_max = 0;
+          setrlimit(RLIMIT_CORE, &no_core);
+          odvr::app::InstallInterruptCleanup();
+          odvr::RegisterTemporaryFile(tmp);
+          raise(sig);
+        },
+        testing::KilledBySignal(sig), "");
+    EXPECT_FALSE(std::filesystem::exists(tmp)) << strsignal(sig);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// A write past the file size limit (ulimit -f) fails with EFBIG instead of killing the process by
+// SIGXFSZ (which left the temporary behind), so the writer's error path runs.
+TEST(CrashReport, AWritePastTheFileSizeLimitFailsInsteadOfKilling) {
+  GTEST_FLAG_SET(death_test_style, "fast");  // forked here: the child writes this test's file
+  const std::filesystem::path file =
+      std::filesystem::temp_directory_path() / ("odvr_fsize_" + std::to_string(::getpid()));
+  EXPECT_EXIT(
+      {
+        odvr::app::InstallInterruptCleanup();
+        rlimit limit;
+        limit.rlim_cur = limit.rlim_max = 4096;
+        setrlimit(RLIMIT_FSIZE, &limit);
+        const int fd = open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+        const std::vector<char> bytes(8192, 'x');
+        const ssize_t first = write(fd, bytes.data(), bytes.size());  // short: up to the limit
+        const ssize_t second = write(fd, bytes.data(), bytes.size());
+        std::fprintf(stderr, "wrote %zd then %zd (%s)\n", first, second, second < 0 ? strerror(errno) : "");
+        std::_Exit(second < 0 && errno == EFBIG ? 3 : 4);
+      },
+      testing::ExitedWithCode(3), "wrote 4096 then -1");
+  std::filesystem::remove(file);
 }
 
 // SIGTERM while an output is being written: odvr's handler removes the temporary, and the process
