@@ -1,11 +1,14 @@
 #include "core/atomic_file.h"
 
-#include <pthread.h>
+#include <fcntl.h>
 #include <signal.h>
+#include <stdio.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
+#include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <system_error>
@@ -109,48 +112,144 @@ void WriteFileAtomically(const fs::path& path, const std::function<void(const fs
   ReleaseTemporaryFile(tmp);
 }
 
-void WriteTextFilesAtomically(const fs::path& dir, const std::vector<std::pair<std::string, std::string>>& files) {
+namespace {
+
+// The interrupt handler's side of InterruptsDeferred: how many sections are open, and the signal
+// that arrived during one (0: none).
+std::atomic<int> g_deferring_sections{0};
+std::atomic<int> g_deferred_signal{0};
+
+// `dir` as an absolute path without a trailing separator: "out/" and "." name the folder itself.
+fs::path FolderPath(const fs::path& dir) {
+  fs::path d = fs::absolute(dir).lexically_normal();
+  if (!d.has_filename()) d = d.parent_path();
+  return d;
+}
+
+// Refuses a folder that cannot be swapped for a new one: not a folder (a file, a device), or the
+// working folder or one above it (the shell that ran odvr would be left in a removed folder). A
+// symbolic link to a folder is followed: the folder it names is replaced, the link kept.
+fs::path SwappableFolder(const fs::path& dir) {
+  fs::path d = FolderPath(dir);
   std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw Error(dir.string(), "cannot create directory: " + ec.message());
-  std::vector<fs::path> tmps;
-  const auto discard = [&] {
-    std::error_code ignored;
-    for (const auto& t : tmps) {
-      fs::remove(t, ignored);
-      ReleaseTemporaryFile(t);
-    }
-  };
+  if (fs::is_symlink(fs::symlink_status(d, ec))) {
+    d = fs::canonical(d, ec);
+    if (ec) throw Error(dir.string(), "cannot follow the link: " + ec.message());
+  }
+  if (fs::exists(d, ec) && !fs::is_directory(d, ec))
+    throw Error(dir.string(), "is not a folder: refusing to replace it with the output folder");
+  const fs::path inside =
+      fs::weakly_canonical(fs::current_path(ec), ec).lexically_relative(fs::weakly_canonical(d, ec));
+  if (!inside.empty() && *inside.begin() != "..")
+    throw Error(dir.string(),
+                "holds the working folder: the output folder is replaced as a whole, give it one of its own");
+  return d;
+}
+
+// Writes the set into `tmp` and carries every other entry of `old_dir` (if any) over as a hard
+// link (a copy where links cannot be made), so the swap replaces the set and keeps the rest.
+void FillNewFolder(const fs::path& tmp, const fs::path& old_dir,
+                   const std::vector<std::pair<std::string, std::string>>& files) {
+  std::error_code ec;
+  fs::create_directory(tmp, ec);
+  if (ec) throw Error(tmp.string(), "cannot create the output folder: " + ec.message());
+  std::vector<std::string> names;
+  for (const auto& [name, text] : files) {
+    const fs::path target = old_dir / name;
+    CheckReplaceableOutput(target);
+    std::ofstream out(tmp / name, std::ios::binary);
+    out << text;
+    out.close();
+    if (!out) throw Error(target.string(), "cannot write (disk full, or no permission?)");
+    names.push_back(name);
+  }
+  if (!fs::is_directory(old_dir, ec)) return;
+  for (const auto& entry : fs::directory_iterator(old_dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (std::find(names.begin(), names.end(), name) != names.end()) continue;
+    constexpr auto kLink = fs::copy_options::recursive | fs::copy_options::copy_symlinks;
+    fs::copy(entry.path(), tmp / name, kLink | fs::copy_options::create_hard_links, ec);
+    if (ec) fs::copy(entry.path(), tmp / name, kLink, ec);
+    if (ec) throw Error(entry.path().string(), "cannot keep it in the new output folder: " + ec.message());
+  }
+  if (ec) throw Error(old_dir.string(), "cannot list: " + ec.message());
+  fs::permissions(tmp, fs::status(old_dir).permissions(), ec);
+}
+
+// Puts the folder `tmp` in the place of `dir`: in one step where the file system swaps two names
+// (renameat2 RENAME_EXCHANGE), else the old folder renamed aside, the new one into place and the
+// old one back if that fails. The old folder is removed after. Throws naming `dir`.
+void SwapFolderIntoPlace(const fs::path& tmp, const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) {
+    fs::rename(tmp, dir, ec);
+    if (ec) throw Error(dir.string(), "cannot write (rename failed): " + ec.message());
+    return;
+  }
+  if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) == 0) {
+    fs::remove_all(tmp, ec);  // the old folder, now under the temporary name
+    return;
+  }
+  if (errno != EINVAL && errno != ENOSYS && errno != ENOTSUP)
+    throw Error(dir.string(), std::string("cannot write (rename failed): ") + std::strerror(errno));
+  std::string aside_name = ".";
+  aside_name += dir.filename().string();
+  aside_name += ".old" + std::to_string(::getpid());
+  const fs::path aside = dir.parent_path() / aside_name;
+  fs::rename(dir, aside, ec);
+  if (ec) throw Error(dir.string(), "cannot move the old output folder aside: " + ec.message());
+  fs::rename(tmp, dir, ec);
+  if (ec) {
+    const std::string why = ec.message();  // before the restore overwrites it
+    fs::rename(aside, dir, ec);
+    throw Error(dir.string(), "cannot write (rename failed): " + why);
+  }
+  fs::remove_all(aside, ec);
+}
+
+}  // namespace
+
+InterruptsDeferred::InterruptsDeferred() { g_deferring_sections.fetch_add(1); }
+
+InterruptsDeferred::~InterruptsDeferred() {
+  if (g_deferring_sections.fetch_sub(1) != 1) return;
+  const int sig = g_deferred_signal.exchange(0);
+  if (sig == 0) return;
+  RemoveTemporaryFiles();
+  struct sigaction fallback {};
+  fallback.sa_handler = SIG_DFL;
+  sigemptyset(&fallback.sa_mask);
+  sigaction(sig, &fallback, nullptr);
+  ::raise(sig);
+}
+
+bool DeferInterrupt(int sig) {
+  // Recorded first, then the sections counted: a section that closes in between finds the signal.
+  g_deferred_signal.store(sig);
+  if (g_deferring_sections.load() > 0) return true;
+  g_deferred_signal.store(0);
+  return false;
+}
+
+void WriteTextFilesAtomically(const fs::path& dir, const std::vector<std::pair<std::string, std::string>>& files) {
+  const fs::path folder = SwappableFolder(dir);
+  std::error_code ec;
+  fs::create_directories(folder.parent_path(), ec);
+  if (ec) throw Error(folder.parent_path().string(), "cannot create directory: " + ec.message());
+  std::string tmp_name = ".";
+  tmp_name += folder.filename().string();
+  tmp_name += ".tmp" + std::to_string(::getpid());
+  const fs::path tmp = folder.parent_path() / tmp_name;
+  // Held off from the first file to the swap's end (a second or so), so that an interrupt
+  // removes no file of a half-swapped set: it ends the process when the set is whole.
+  InterruptsDeferred interrupts_held;
+  fs::remove_all(tmp, ec);  // an earlier run's, killed
   try {
-    for (const auto& [name, text] : files) {
-      const fs::path target = dir / name;
-      CheckReplaceableOutput(target);
-      tmps.push_back(dir / ("." + name + ".tmp" + std::to_string(::getpid())));
-      RegisterTemporaryFile(tmps.back());
-      std::ofstream out(tmps.back(), std::ios::binary);
-      out << text;
-      out.close();
-      if (!out) throw Error(target.string(), "cannot write (disk full, or no permission?)");
-    }
+    FillNewFolder(tmp, folder, files);
+    SwapFolderIntoPlace(tmp, folder);
   } catch (...) {
-    discard();
+    fs::remove_all(tmp, ec);
     throw;
-  }
-  sigset_t interrupts, previous;
-  sigemptyset(&interrupts);
-  sigaddset(&interrupts, SIGINT);
-  sigaddset(&interrupts, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &interrupts, &previous);
-  std::string failed;
-  for (std::size_t i = 0; i < files.size() && failed.empty(); ++i) {
-    fs::rename(tmps[i], dir / files[i].first, ec);
-    if (ec) failed = (dir / files[i].first).string() + ": cannot write (rename failed): " + ec.message();
-  }
-  for (const auto& t : tmps) ReleaseTemporaryFile(t);
-  pthread_sigmask(SIG_SETMASK, &previous, nullptr);
-  if (!failed.empty()) {
-    discard();
-    throw Error("output set", failed);
   }
 }
 

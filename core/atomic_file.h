@@ -21,11 +21,28 @@ void WriteFileAtomically(const std::filesystem::path& path,
 // Convenience for text outputs (JSON, TUM, COLMAP text).
 void WriteTextAtomically(const std::filesystem::path& path, const std::string& text);
 
-// A set of text files in `dir` (created), as a set: each is written to a temporary first, then
-// all are renamed into place with SIGINT and SIGTERM held off, so an interrupted or failed run
-// leaves either the whole old set or the whole new one, never files of both.
+// A set of text files making up the folder `dir`, replaced as a whole: the set is written into a
+// temporary sibling folder, with every other entry of the old folder carried over (hard links),
+// and that folder is swapped for the old one, so `dir` is always wholly old or wholly new, after
+// a failure or an interrupt too. Interrupts are held off meanwhile (InterruptsDeferred). Throws
+// odvr::Error naming `dir` when it is not a folder, or holds the working folder.
 void WriteTextFilesAtomically(const std::filesystem::path& dir,
                               const std::vector<std::pair<std::string, std::string>>& name_and_text);
+
+// While one lives, an interrupt (the handler calls DeferInterrupt) does not end the process: it
+// is recorded, and the last one to end removes the temporaries and ends the process by that
+// signal. Blocking the signal would not do: pthread_sigmask holds it off in one thread only.
+class InterruptsDeferred {
+ public:
+  InterruptsDeferred();
+  ~InterruptsDeferred();
+  InterruptsDeferred(const InterruptsDeferred&) = delete;
+  InterruptsDeferred& operator=(const InterruptsDeferred&) = delete;
+};
+// For an interrupt handler, async-signal-safe: true when an InterruptsDeferred is alive (the
+// signal is recorded, the handler returns and the process goes on), false when the handler is to
+// act now.
+bool DeferInterrupt(int sig);
 
 // Throws odvr::Error naming `path` when it exists and is not a regular file (see above); for
 // outputs written in place or as folders.

@@ -56,8 +56,10 @@ void OnFatalSignal(int sig) {
 }
 
 // SIGINT, SIGTERM, SIGHUP (the terminal closed), SIGQUIT: the temporaries of unfinished atomic
-// writes go, then the default action, so the process still ends by the signal.
+// writes go, then the default action, so the process still ends by the signal. While an output
+// set is being swapped into place (InterruptsDeferred) the signal is held until the swap is done.
 void OnInterrupt(int sig) {
+  if (DeferInterrupt(sig)) return;
   RemoveTemporaryFiles();
   struct sigaction fallback {};
   fallback.sa_handler = SIG_DFL;

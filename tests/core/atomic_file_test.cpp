@@ -3,12 +3,17 @@
 #include <gtest/gtest.h>
 
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -24,6 +29,14 @@ std::string ReadAll(const fs::path& p) {
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
+}
+
+// Entries beside `dir` named after it with a temporary's suffix (".NAME.tmpPID", ".NAME.oldPID").
+int SiblingTemporaries(const fs::path& dir) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(dir.parent_path()))
+    n += e.path().filename().string().rfind("." + dir.filename().string() + ".", 0) == 0;
+  return n;
 }
 
 TEST(AtomicFile, ReplacesTheTargetOnlyWhenTheWriteSucceeds) {
@@ -109,8 +122,94 @@ TEST(AtomicFile, ASetIsWrittenWholeOrNotAtAll) {
   EXPECT_EQ(ReadAll(dir / "b.txt"), "b2");
   int entries = 0;
   for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++entries;
-  EXPECT_EQ(entries, 3) << "a.json, b.txt and the c.txt folder: no temporary left";
+  EXPECT_EQ(entries, 3) << "a.json, b.txt and the c.txt folder";
+  EXPECT_EQ(SiblingTemporaries(dir), 0);
   fs::remove_all(dir);
+}
+
+// The set's folder is swapped for a new one as a whole: the new set in it, every other entry of
+// the old folder (a note, a folder of images) kept, nothing left beside it. The working folder is
+// refused (the shell that ran odvr would be left in a removed folder).
+TEST(AtomicFile, AnOutputFolderIsSwappedWholeKeepingItsOtherEntries) {
+  const fs::path dir = fs::temp_directory_path() / ("odvr_atomic_swap_" + std::to_string(::getpid()));
+  WriteTextFilesAtomically(dir, {{"a.json", "a1"}, {"b.txt", "b1"}});
+  std::ofstream(dir / "notes.md") << "mine";
+  fs::create_directories(dir / "images");
+  std::ofstream(dir / "images" / "0.png") << "png";
+  WriteTextFilesAtomically(dir.string() + "/", {{"a.json", "a2"}, {"b.txt", "b2"}});
+  EXPECT_EQ(ReadAll(dir / "a.json"), "a2");
+  EXPECT_EQ(ReadAll(dir / "b.txt"), "b2");
+  EXPECT_EQ(ReadAll(dir / "notes.md"), "mine");
+  EXPECT_EQ(ReadAll(dir / "images" / "0.png"), "png");
+  EXPECT_EQ(SiblingTemporaries(dir), 0);
+  const fs::path cwd = fs::current_path();
+  fs::current_path(dir / "images");
+  try {
+    WriteTextFilesAtomically(dir, {{"a.json", "a3"}});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("holds the working folder"), std::string::npos) << e.what();
+  }
+  fs::current_path(cwd);
+  EXPECT_EQ(ReadAll(dir / "a.json"), "a2");
+  fs::remove_all(dir);
+}
+
+// A write that fails part-way (a full disk, stood in for by a file size limit with SIGXFSZ
+// ignored, in a child process) leaves the whole old set and no temporary folder.
+TEST(AtomicFile, ASetThatFailsPartWayLeavesTheWholeOldSet) {
+  GTEST_FLAG_SET(death_test_style, "fast");  // forked here: the child writes this test's files
+  const fs::path dir = fs::temp_directory_path() / ("odvr_atomic_full_" + std::to_string(::getpid()));
+  WriteTextFilesAtomically(dir, {{"trajectory.json", "t1"}, {"summary.json", "s1"}, {"points3D.txt", "p1"}});
+  // Built outside EXPECT_EXIT: the macro splits its argument at the braces' commas.
+  const std::vector<std::pair<std::string, std::string>> new_set = {
+      {"trajectory.json", "t2"}, {"summary.json", "s2"}, {"points3D.txt", std::string(8192, 'p')}};
+  EXPECT_EXIT(
+      {
+        ::signal(SIGXFSZ, SIG_IGN);
+        rlimit limit;
+        limit.rlim_cur = limit.rlim_max = 4096;
+        ::setrlimit(RLIMIT_FSIZE, &limit);
+        try {
+          WriteTextFilesAtomically(dir, new_set);
+        } catch (const Error& e) {
+          std::fprintf(stderr, "%s\n", e.what());
+          std::_Exit(3);
+        }
+        std::_Exit(0);
+      },
+      ::testing::ExitedWithCode(3), "points3D.txt: cannot write");
+  EXPECT_EQ(ReadAll(dir / "trajectory.json"), "t1");
+  EXPECT_EQ(ReadAll(dir / "summary.json"), "s1");
+  EXPECT_EQ(ReadAll(dir / "points3D.txt"), "p1");
+  EXPECT_EQ(SiblingTemporaries(dir), 0);
+  fs::remove_all(dir);
+}
+
+// A signal sent to the process (any thread may take it) while a set is being swapped is held:
+// the process goes on to the section's end, then removes the temporaries and ends by the signal.
+TEST(AtomicFile, AnInterruptDuringASwapEndsTheProcessWhenTheSwapIsDone) {
+  GTEST_FLAG_SET(death_test_style, "fast");  // forked here: the child writes this test's files
+  const fs::path tmp = fs::temp_directory_path() / (".odvr_deferred.tmp" + std::to_string(::getpid()));
+  std::ofstream(tmp) << "half";
+  EXPECT_EXIT(
+      {
+        ::signal(SIGTERM, [](int sig) {
+          if (DeferInterrupt(sig)) return;
+          RemoveTemporaryFiles();
+          ::signal(sig, SIG_DFL);
+          ::raise(sig);
+        });
+        RegisterTemporaryFile(tmp);
+        {
+          InterruptsDeferred held;
+          std::thread([] { ::kill(::getpid(), SIGTERM); }).join();
+          std::fprintf(stderr, "alive after the signal\n");
+        }
+        std::_Exit(0);
+      },
+      ::testing::KilledBySignal(SIGTERM), "alive after the signal");
+  EXPECT_FALSE(fs::exists(tmp));
 }
 
 // SIGTERM in the middle of a write: the handler removes the registered temporaries before the
