@@ -1,5 +1,6 @@
 #include "app/ar/augmented_scene.h"
 
+#include <spdlog/spdlog.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -171,19 +172,35 @@ struct AugmentedScene::Impl {
 
 namespace {
 
+// A camera path shorter than this has no road to put the car on: it stands kStandingAheadM (at
+// least) ahead of the camera instead (AugmentedScene::PlaceCar).
+constexpr double kStandingPathM = 0.5, kStandingAheadM = 4.0;
+
 // A pose far off the others (a corrupt file, a failed reconstruction) would send the car and the
 // view there: one whose step from the previous frame is both over 10 m and over 50 times the
-// median step is refused, naming the frame, as is any position beyond 1000 km.
+// median step is refused, naming the frame, as is any position beyond 1000 km. With fewer than
+// three steps there is no median to compare with: a step faster than kFastestMps (540 km/h, past
+// any road vehicle and a high-speed train) is refused instead.
 void CheckPlausiblePath(const std::string& trajectory, const std::vector<int>& frames,
-                        const std::vector<glm::dvec3>& positions) {
-  constexpr double kFarM = 1e6, kJumpM = 10, kJumpOverMedian = 50;
+                        const std::vector<glm::dvec3>& positions, double fps) {
+  constexpr double kFarM = 1e6, kJumpM = 10, kJumpOverMedian = 50, kFastestMps = 150;
   for (std::size_t i = 0; i < positions.size(); ++i)
     if (!(glm::length(positions[i]) < kFarM))
       throw Error(trajectory, "frame " + std::to_string(frames[i]) + ": the camera is " +
                                   std::to_string(glm::length(positions[i])) + " m from the origin, not a place");
   std::vector<double> steps;
   for (std::size_t i = 1; i < positions.size(); ++i) steps.push_back(glm::distance(positions[i - 1], positions[i]));
-  if (steps.size() < 3) return;
+  if (steps.size() < 3) {
+    for (std::size_t i = 0; i < steps.size(); ++i) {
+      const double seconds = (frames[i + 1] - frames[i]) / (fps > 0 ? fps : 25.0);
+      if (steps[i] > kFastestMps * seconds)
+        throw Error(trajectory, "frame " + std::to_string(frames[i + 1]) + ": the camera moves " +
+                                    std::to_string(steps[i]) + " m in " + std::to_string(seconds) +
+                                    " s from the frame before, faster than any vehicle (" +
+                                    std::to_string(static_cast<int>(kFastestMps)) + " m/s): an outlier pose");
+    }
+    return;
+  }
   std::vector<double> sorted = steps;
   std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
   const double median = sorted[sorted.size() / 2];
@@ -192,6 +209,16 @@ void CheckPlausiblePath(const std::string& trajectory, const std::vector<int>& f
       throw Error(trajectory, "frame " + std::to_string(frames[i + 1]) + ": the camera jumps " +
                                   std::to_string(steps[i]) + " m from the frame before (the median step is " +
                                   std::to_string(median) + " m): an outlier pose");
+}
+
+// A camera that stands still has no road for the car: said once, naming the trajectory, so that a
+// car placed ahead of the camera instead of on a path is not a surprise.
+void WarnOfAStandingCamera(const std::string& trajectory, std::size_t poses, double path_m, double ahead_m) {
+  const std::string why = poses < 2
+                              ? "one pose shared with the video"
+                              : fmt::format("the camera moves {:.2f} m in all (under {} m)", path_m, kStandingPathM);
+  spdlog::warn("{}: {}: no road to drive on, so the car stands {:.1f} m ahead of the camera, along its forward",
+               trajectory, why, std::max(ahead_m, kStandingAheadM));
 }
 
 }  // namespace
@@ -227,16 +254,19 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
   if (frame_index_.empty())
     throw Error(options_.trajectory, "shares no frame index with " + options_.video + " (" +
                                          std::to_string(im.announced_frames) + " frames)");
-  CheckPlausiblePath(options_.trajectory, frame_index_, im.positions);
+  CheckPlausiblePath(options_.trajectory, frame_index_, im.positions, im.decoder->fps());
   for (const auto& p : im.positions) im.rig_height += p.y / static_cast<double>(im.positions.size());
   picker_ = std::make_unique<FramePicker>(im.positions, options_.picker);
+  const double car_start_m = options_.car_start_m >= 0 ? options_.car_start_m : options_.picker.view_distance_m;
+  if (im.positions.size() < 2 || picker_->path_length() < kStandingPathM)
+    WarnOfAStandingCamera(options_.trajectory, im.positions.size(), picker_->path_length(), car_start_m);
 
   im.builder = std::make_unique<lighting::LightingBuilder>(options_.Lighting());
   im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), options_.Render());
   im.car_centre = BoundsCentre(*im.renderer);
 
   car_ = std::make_unique<CarController>(GroundPlane{{0, 1, 0}, 0});
-  PlaceCar(options_.car_start_m >= 0 ? options_.car_start_m : options_.picker.view_distance_m, options_.lateral_m);
+  PlaceCar(car_start_m, options_.lateral_m);
 }
 
 AugmentedScene::~AugmentedScene() = default;
@@ -247,7 +277,6 @@ double AugmentedScene::fps() const { return impl_->decoder->fps(); }
 long AugmentedScene::video_frames() const { return impl_->decoder->available_frames(); }
 
 namespace {
-constexpr double kStandingPathM = 0.5, kStandingAheadM = 4.0;
 // How far the driven car may go past the first or last camera, or to the side of the path,
 // before it is held: a car's length beyond the ends, a wide street's half width to the side.
 constexpr double kStretchEndMarginM = 5.0, kStretchSideMarginM = 15.0;

@@ -370,7 +370,8 @@ TEST(RunPlayGL, AStereoVideoWithMetadataShowsItsTopEyeAt2To1) {
 }
 
 // A camera that never moves (every pose the demo's first, as a tripod reconstruction gives) put
-// the car over the camera; it stands on the road ahead of it, as on a moving trajectory.
+// the car over the camera; it stands on the road ahead of it, as on a moving trajectory, and a
+// warning naming the trajectory says why.
 TEST(RunPlayGL, AStandingCameraGetsItsCarAheadNotOverIt) {
   const fs::path dir = TempDir("odvr_play_standing");
   auto trajectory = nlohmann::json::parse(std::ifstream(kDemo / "trajectory_gt.json"));
@@ -393,6 +394,11 @@ TEST(RunPlayGL, AStandingCameraGetsItsCarAheadNotOverIt) {
   EXPECT_GT(ahead, 4.0) << "along the camera's forward (+x)";
   EXPECT_LT(std::abs(aside), 0.5);
   EXPECT_GT(f["car_pixels"].get<int>(), 20);
+  EXPECT_NE(r.err.find((dir / "standing.json").string() +
+                       ": the camera moves 0.00 m in all (under 0.5 m): no road to drive on, so the car stands 6.0 m "
+                       "ahead of the camera"),
+            std::string::npos)
+      << r.err;
   fs::remove_all(dir);
 }
 
@@ -410,6 +416,22 @@ TEST(RunPlayGL, AnOutlierPoseIsRefusedNamingItsFrame) {
                            " --trajectory " + (dir / "outlier.json").string());
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_NE(r.err.find((dir / "outlier.json").string() + ": " + needle), std::string::npos) << r.err;
+  }
+  // Two or three poses have no median step to compare with: a step faster than any vehicle
+  // (900 km in a frame, or a middle pose 200 m off) is refused all the same.
+  for (const auto& [poses, needle] : std::vector<std::pair<int, std::string>>{{2, "frame 1: the camera moves 900"},
+                                                                              {3, "frame 1: the camera moves 20"}}) {
+    auto trajectory = nlohmann::json::parse(std::ifstream(kDemo / "trajectory_gt.json"));
+    trajectory["frames"].erase(trajectory["frames"].begin() + poses, trajectory["frames"].end());
+    trajectory["frames"][1]["world_from_rig"][1][3] = poses == 2 ? 9e5 : 200.0;
+    trajectory["frames"][1].erase("world_yup_from_rig");
+    std::ofstream(dir / "short.json") << trajectory.dump();
+    const auto r = RunOdvr("play --headless --size 32x18 --frames 1 --out " + (dir / "out").string() + kSmall +
+                           (kDemo / "street.mp4").string() + " --car " + (kDemo / "car.glb").string() +
+                           " --trajectory " + (dir / "short.json").string());
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find((dir / "short.json").string() + ": " + needle), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("faster than any vehicle"), std::string::npos) << r.err;
   }
   fs::remove_all(dir);
 }
