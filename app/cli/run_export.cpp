@@ -143,6 +143,12 @@ int RunExport(ExportCommand& c) {
     capture::CheckWrittenVideo(tmp, c.out, frames);
   });
   const double elapsed = SecondsSince(start);
+  // The clip is written, but a user who asked for a car and sees none deserves to hear why.
+  if (frames_with_car == 0)
+    spdlog::warn(
+        "{}: the car ({}) covers no pixel in any of the {} frames: it lies outside the view (see --view and "
+        "--car-start), or is too small or too far off to see",
+        c.out, c.scene.car, frames);
   if (c.json) {
     std::cout << nlohmann::json{{"output", c.out},         {"frames", frames},
                                 {"size", {width, height}}, {"fps", fps},

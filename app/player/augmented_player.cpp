@@ -4,6 +4,7 @@
 #include <GLFW/glfw3.h>
 #include <imgui.h>
 
+#include <spdlog/spdlog.h>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -146,6 +147,16 @@ bool CarPanel(int window_width, int levels, bool open, const AugmentedFrame& fra
   return !(*look == before);
 }
 
+// A car that covers no pixel of the first frame (placed kilometres off, scaled to nothing, its
+// triangles of no area) would play without a word: said once, naming the model.
+void WarnIfTheCarIsUnseen(const AugmentedFrame& first, const std::string& car) {
+  if (first.car_pixels == 0)
+    spdlog::warn(
+        "{}: the car covers no pixel of the first frame: it lies outside the view, or is too small or too far off "
+        "to see",
+        car);
+}
+
 }  // namespace
 
 PlayerReport RunAugmentedHeadless(const PlayerOptions& o) {
@@ -169,6 +180,7 @@ PlayerReport RunAugmentedHeadless(const PlayerOptions& o) {
     if (i > 0 && script.empty()) scene.Cruise(dt);
     if (i > 0 && !script.empty()) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
     const AugmentedFrame f = scene.Render(o.width, o.height, view, i > 0 ? dt : 0);
+    if (i == 0) WarnIfTheCarIsUnseen(f, o.car);
     char name[32];
     std::snprintf(name, sizeof name, "frame_%06d.png", i);
     const auto path = std::filesystem::path(o.out_dir) / name;
@@ -258,6 +270,7 @@ PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
       const int rw = std::max(fb_w, 16), rh = std::max(fb_h, 16);
       const AugmentedView view{look.state().yaw_deg, look.state().pitch_deg, look.state().fov_deg, draw_car};
       frame = scene.Render(rw, rh, view, dt);
+      if (all.empty()) WarnIfTheCarIsUnseen(frame, o.car);
       all.push_back(Timings(frame));
       report.frames.push_back(Record(frame));
       presenter.Show(scene.composite(), static_cast<float>(o.exposure), fb_w, fb_h);

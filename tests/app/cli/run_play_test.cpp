@@ -3,13 +3,16 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -399,6 +402,49 @@ TEST(RunPlayGL, AStandingCameraGetsItsCarAheadNotOverIt) {
                        "ahead of the camera"),
             std::string::npos)
       << r.err;
+  fs::remove_all(dir);
+}
+
+// The demo car moved 5 km off (under a root node of its own, translated): nothing of it is in view.
+fs::path FarOffCar(const fs::path& dir) {
+  std::ifstream in(kDemo / "car.glb", std::ios::binary);
+  const std::string glb((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::uint32_t json_bytes = 0;
+  std::memcpy(&json_bytes, glb.data() + 12, 4);
+  auto j = nlohmann::json::parse(glb.substr(20, json_bytes));
+  auto& scene = j["scenes"][j.value("scene", 0)];
+  j["nodes"].push_back({{"translation", {5000.0, 0.0, 0.0}}, {"children", scene["nodes"]}});
+  scene["nodes"] = {j["nodes"].size() - 1};
+  std::string text = j.dump();
+  text.append((4 - text.size() % 4) % 4, ' ');                                             // chunks are 4-byte aligned
+  const std::uint32_t header[2] = {static_cast<std::uint32_t>(text.size()), 0x4E4F534Au};  // length, "JSON"
+  std::string out =
+      glb.substr(0, 12) + std::string(reinterpret_cast<const char*>(header), 8) + text + glb.substr(20 + json_bytes);
+  const auto total = static_cast<std::uint32_t>(out.size());
+  std::memcpy(out.data() + 8, &total, 4);
+  const fs::path path = dir / "far.glb";
+  std::ofstream(path, std::ios::binary) << out;
+  return path;
+}
+
+// A car that draws nothing in view (5 km off) played and exported without a word: a warning
+// names the model, once.
+TEST(RunPlayGL, ACarThatCoversNoPixelIsAWarningNamingTheModel) {
+  const fs::path dir = TempDir("odvr_play_unseen");
+  const fs::path car = FarOffCar(dir);
+  const std::string inputs = " --trajectory " + (kDemo / "trajectory_gt.json").string() + " --car " + car.string();
+  const auto play = RunOdvr("play --headless --size 32x18 --frames 2 --out " + (dir / "out").string() + kSmall +
+                            (kDemo / "street.mp4").string() + inputs);
+  EXPECT_EQ(play.exit_code, 0) << play.err;
+  const std::string said = car.string() + ": the car covers no pixel of the first frame";
+  EXPECT_NE(play.err.find(said), std::string::npos) << play.err;
+  EXPECT_EQ(play.err.find(said), play.err.rfind(said)) << "once";
+  const auto clip = RunOdvr("export --video " + (kDemo / "street.mp4").string() + inputs +
+                            " --frames 2 --size 32x18 --out " + (dir / "clip.mp4").string() + kSmall);
+  EXPECT_EQ(clip.exit_code, 0) << clip.err;
+  EXPECT_NE(clip.err.find("clip.mp4: the car (" + car.string() + ") covers no pixel in any of the 2 frames"),
+            std::string::npos)
+      << clip.err;
   fs::remove_all(dir);
 }
 
