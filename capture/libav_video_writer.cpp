@@ -1,5 +1,7 @@
 #include "capture/libav_video_writer.h"
 
+#include <spdlog/fmt/fmt.h>
+
 #include <algorithm>
 #include <cstdint>
 #include <string>
@@ -30,7 +32,8 @@ void VideoWriterOptions::Check() const {
   if (width < 16 || height < 16 || width > 8192 || height > 8192 || width % 2 || height % 2)
     throw UsageError("video size", "must be even and between 16x16 and 8192x8192, got " + std::to_string(width) + "x" +
                                        std::to_string(height));
-  if (!(fps > 0 && fps <= 1000)) throw UsageError("--fps", "must be in (0, 1000]");
+  if (!(fps >= kMinFps && fps <= kMaxFps))
+    throw UsageError("--fps", fmt::format("must be in [{:g}, {:g}], got {:g}", kMinFps, kMaxFps, fps));
   if (!codec.empty() && codec != "h264" && codec != "h265" && codec != "mjpeg")
     throw UsageError("--codec", "\"" + codec + "\" is none of h264, h265, mjpeg");
   if (crf < 0 || crf > 51) throw UsageError("--crf", "must be in 0..51");
@@ -45,7 +48,8 @@ std::string DefaultCodecFor(const std::filesystem::path& path) {
 }
 
 struct LibavVideoWriter::Impl {
-  std::string name;
+  std::string path;  // the file written
+  std::string name;  // the file errors name: the output the user asked for
   VideoWriterOptions options;
   AVFormatContext* format = nullptr;
   AVCodecContext* encoder = nullptr;
@@ -84,7 +88,7 @@ struct LibavVideoWriter::Impl {
   }
 
   void OpenEncoder() {
-    const std::string codec = options.codec.empty() ? DefaultCodecFor(name) : options.codec;
+    const std::string codec = options.codec.empty() ? DefaultCodecFor(path) : options.codec;
     const char* encoder_name = codec == "h264" ? "libx264" : codec == "h265" ? "libx265" : "mjpeg";
     const AVCodec* found = avcodec_find_encoder_by_name(encoder_name);
     if (!found) Fail(std::string("this libavcodec has no ") + encoder_name + " encoder", 0);
@@ -212,7 +216,7 @@ struct LibavVideoWriter::Impl {
   }
 
   void Open() {
-    int rc = avformat_alloc_output_context2(&format, nullptr, nullptr, name.c_str());
+    int rc = avformat_alloc_output_context2(&format, nullptr, nullptr, path.c_str());
     if (rc < 0 || !format) Fail("libav writes no container for this extension", rc);
     OpenEncoder();
     stream = avformat_new_stream(format, nullptr);
@@ -225,7 +229,7 @@ struct LibavVideoWriter::Impl {
     if (codec_name == "libx265" && format->oformat->codec_tag) stream->codecpar->codec_tag = MKTAG('h', 'v', 'c', '1');
     if (options.spherical_equirect) AddSphericalMetadata();
     if (!options.audio_from.empty()) OpenAudio();
-    rc = avio_open(&format->pb, name.c_str(), AVIO_FLAG_WRITE);
+    rc = avio_open(&format->pb, path.c_str(), AVIO_FLAG_WRITE);
     if (rc < 0) Fail("cannot open for writing", rc);
     AVDictionary* muxer = nullptr;
     // MP4/MOV: the index at the front, so that a browser or player starts before the whole file
@@ -266,11 +270,13 @@ struct LibavVideoWriter::Impl {
   }
 };
 
-LibavVideoWriter::LibavVideoWriter(const std::filesystem::path& path, const VideoWriterOptions& options)
+LibavVideoWriter::LibavVideoWriter(const std::filesystem::path& path, const VideoWriterOptions& options,
+                                   const std::string& name)
     : impl_(std::make_unique<Impl>()) {
   options.Check();
   RouteLibavLog();
-  impl_->name = path.string();
+  impl_->path = path.string();
+  impl_->name = name.empty() ? path.string() : name;
   impl_->options = options;
   impl_->Open();
 }

@@ -8,6 +8,10 @@
 
 namespace odvr::capture {
 
+// The frame rates written. Below one frame in 100 s a clip is a slide show that players and
+// libav's timestamps handle badly; above 1000 no display shows the frames.
+constexpr double kMinFps = 0.01, kMaxFps = 1000;
+
 struct VideoWriterOptions {
   int width = 0, height = 0;  // even, for 4:2:0 chroma
   double fps = 25;
@@ -35,9 +39,10 @@ std::string DefaultCodecFor(const std::filesystem::path& path);
 
 class LibavVideoWriter {
  public:
-  // Opens `path` for writing (the container by its extension). Throws odvr::Error naming it when
+  // Opens `path` for writing (the container by its extension). Errors name `name` (the output the
+  // user asked for, when `path` is its temporary; `path` itself when empty): odvr::Error when
   // libav has no such container or encoder, or cannot open the file.
-  LibavVideoWriter(const std::filesystem::path& path, const VideoWriterOptions& options);
+  LibavVideoWriter(const std::filesystem::path& path, const VideoWriterOptions& options, const std::string& name = "");
   // Without Finish() the file is left unfinished (no trailer): the caller discards it.
   ~LibavVideoWriter();
   LibavVideoWriter(const LibavVideoWriter&) = delete;

@@ -45,6 +45,13 @@ int ConeRingsForCount(int cones);
 // --help, this reads as the plain flag it is; a switch with an on and an off name is two of them.
 CLI::Option* AddSetFlag(CLI::App* sub, const std::string& name, bool* value, bool set_to, const std::string& help);
 
+// A command-line number in [min, max], finite: CLI::Range lets "nan" through (every comparison with
+// it is false), and a value the command then took for "not given" used to pass silently.
+CLI::Validator FiniteNumberIn(double min, double max);
+
+// The farthest --car-start along a camera path: no pose lies beyond 1000 km (augmented_scene.cpp).
+constexpr double kFarthestCarStartM = 1e6;
+
 // Runs the whole command line; what main() returns. Errors end here as one line on stderr:
 // exit 2 for usage errors (unknown command, bad flag or value), 1 for everything else.
 int Main(int argc, char** argv);

@@ -87,7 +87,6 @@ int RunExport(ExportCommand& c) {
   }
   const auto script = script_text.empty() ? std::vector<DriveStep>{} : ParseDriveScript(script_text);
   if (c.frames == 0 || c.frames < -1) throw UsageError("--frames", "must be at least 1");
-  if (c.fps != -1 && !(c.fps > 0 && c.fps <= 1000)) throw UsageError("--fps", "must be in (0, 1000]");
   const AugmentedView view = ParseExportView(c.view);
 
   gl::HeadlessContext context;
@@ -112,7 +111,7 @@ int RunExport(ExportCommand& c) {
   std::string encoder, audio;
   int frames_with_car = 0;
   WriteFileAtomically(c.out, [&](const std::filesystem::path& tmp) {
-    capture::LibavVideoWriter writer(tmp, video);
+    capture::LibavVideoWriter writer(tmp, video, c.out);
     encoder = writer.codec_name();
     audio = writer.audio_codec();
     // A recording without sound makes a silent clip as a matter of course; sound that cannot be
@@ -180,7 +179,9 @@ CommandFn AddExport(CLI::App* sub) {
   sub->add_option("--drive,--path", c->path,
                   "The drive: keys and durations, e.g. \"W:2s,A:1s\", or a file holding that (default: the car "
                   "cruises ahead of the camera through the whole trajectory)");
-  sub->add_option("--car-start", s.car_start_m, "Car's start: arc length along the camera path in metres");
+  // Checked where given: the scene takes a negative start for "not given" (the view distance).
+  sub->add_option("--car-start", s.car_start_m, "Car's start: arc length along the camera path in metres")
+      ->check(FiniteNumberIn(0, kFarthestCarStartM));
   sub->add_option("--out", c->out,
                   "The clip: .mp4, .mov, .m4v, .mkv (H.264 unless --codec says otherwise), .avi (MJPEG)")
       ->required();
@@ -191,8 +192,10 @@ CommandFn AddExport(CLI::App* sub) {
       ->check(CLI::Range(0, 51))
       ->capture_default_str();
   sub->add_option("--size", c->size, "WIDTHxHEIGHT (even)")->capture_default_str();
-  sub->add_option("--frames", c->frames, "Frames to write (default: the path's duration)");
-  sub->add_option("--fps", c->fps, "Frame rate (default: the video's)");
+  // Checked where given: -1 stands for "not given" in ExportCommand.
+  sub->add_option("--frames", c->frames, "Frames to write (default: the path's duration)")->check(CLI::PositiveNumber);
+  sub->add_option("--fps", c->fps, "Frame rate (default: the video's)")
+      ->check(FiniteNumberIn(capture::kMinFps, capture::kMaxFps));
   sub->add_option("--view", c->view,
                   "YAW,PITCH[,FOV]: where the clip looks, in degrees turned from the car (positive: right, up), "
                   "and its vertical field of view (default: at the car, 70)");

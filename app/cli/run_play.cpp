@@ -127,7 +127,9 @@ CommandFn AddPlay(CLI::App* sub) {
   c->size_option =
       sub->add_option("--size", c->size, "Window size WIDTHxHEIGHT (headless default: 640x360)")->capture_default_str();
   sub->add_flag("--headless", o.headless, "Render frames to PNG files instead of opening a window");
-  sub->add_option("--frames", o.headless_frames, "Headless: how many frames (default: all)");
+  // Checked where given: 0 stands for "all" in PlayerOptions.
+  sub->add_option("--frames", o.headless_frames, "Headless: how many frames (default: all)")
+      ->check(CLI::PositiveNumber);
   c->out_option = sub->add_option("--out", o.out_dir,
                                   "Headless: output directory (default: odvr_play_frames in the temporary directory)");
   sub->add_option("--stereo", o.stereo,
@@ -149,7 +151,9 @@ CommandFn AddPlay(CLI::App* sub) {
                   "reconstructed first as one 360° camera (once: cached in ~/.cache/odvr)");
   sub->add_option("--camera-height", c->camera_height_m,
                   "Without --trajectory: the camera's height above the road in metres (default: assumed 1.6)");
-  sub->add_option("--car-start", o.car_start_m, "Car's start: arc length along the camera path in metres");
+  // Checked where given: a negative start stands for "not given" (the view distance).
+  sub->add_option("--car-start", o.car_start_m, "Car's start: arc length along the camera path in metres")
+      ->check(FiniteNumberIn(0, kFarthestCarStartM));
   sub->add_option("--view-distance", o.view_distance_m, "The viewer's frame trails the car by this many metres")
       ->capture_default_str();
   sub->add_option("--drive", o.drive,

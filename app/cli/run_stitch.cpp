@@ -146,7 +146,7 @@ int RunStitch(const StitchCommand& c) {
           o.fps = source->fps() > 0 ? source->fps() : 25;
           o.codec = "h264";
           o.spherical_equirect = true;
-          writer = std::make_unique<capture::LibavVideoWriter>(tmp, o);
+          writer = std::make_unique<capture::LibavVideoWriter>(tmp, o, c.out);
         }
         writer->Write(ToBgr8(f.image));
       });
@@ -204,7 +204,8 @@ CommandFn AddStitch(CLI::App* sub) {
   sub->add_option("--format", c->format, "Frame format when --out is a directory: exr or png")->capture_default_str();
   sub->add_option("--size", c->size, "Output equirect size WIDTHxHEIGHT")->capture_default_str();
   sub->add_option("--device", c->device, "gpu (GLSL compute) or cpu (multithreaded reference)")->capture_default_str();
-  sub->add_option("--frames", c->frames, "Stitch at most this many frames (default: all)");
+  // Checked where given: 0 stands for "all" in StitchCommand.
+  sub->add_option("--frames", c->frames, "Stitch at most this many frames (default: all)")->check(CLI::PositiveNumber);
   sub->add_option("--first,--start", c->start, "First frame of a recording");
   sub->add_option("--scene-distance", c->scene_distance_m, "Metres at which camera rays meet (0 = infinity)")
       ->capture_default_str();

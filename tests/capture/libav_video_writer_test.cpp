@@ -220,6 +220,13 @@ TEST_F(LibavVideoWriter, FailuresAreErrorsNamingTheFile) {
     EXPECT_NE(what.find("No space left on device"), std::string::npos) << what;
   }
   EXPECT_THROW(capture::LibavVideoWriter(dir_ / "no" / "such" / "dir.mp4", o), Error);
+  // Written to a temporary for an output (WriteFileAtomically), errors name the output.
+  try {
+    capture::LibavVideoWriter writer(dir_ / "no" / "such" / ".clip.tmp1.mp4", o, "clip.mp4");
+    ADD_FAILURE() << "opened a file in no folder";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.where(), "clip.mp4") << e.what();
+  }
   EXPECT_THROW(capture::LibavVideoWriter(dir_ / "x.xyz",
                                          [&] {
                                            VideoWriterOptions m = o;
@@ -232,8 +239,10 @@ TEST_F(LibavVideoWriter, FailuresAreErrorsNamingTheFile) {
   odd.width = 161;
   EXPECT_THROW(odd.Check(), UsageError);
   VideoWriterOptions fps = o;
-  fps.fps = std::nan("");
-  EXPECT_THROW(fps.Check(), UsageError);
+  for (const double bad : {std::nan(""), 1e-9, 0.0, 1001.0}) {
+    fps.fps = bad;
+    EXPECT_THROW(fps.Check(), UsageError) << bad;
+  }
   // A frame of another size is refused; an unfinished writer closes without a crash.
   capture::LibavVideoWriter writer(dir_ / "partial.mp4", o);
   EXPECT_THROW(writer.Write(Pattern(0, 80, 48)), Error);

@@ -288,14 +288,28 @@ TEST(RunPlay, ExportRefusesAFrameRateOrFrameCountItCannotHonour) {
   const std::string base = "export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
                            (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
                            " --out /nonexistent/clip.mp4";
-  for (const char* fps : {"0", "-5", "nan"}) {
+  // -1 is the command's own "not given"; 1e-9 passed and failed at the encoder, naming a temporary.
+  for (const char* fps : {"0", "-5", "nan", "-1", "1e-9"}) {
     const auto r = RunOdvr(base + " --fps " + fps);
     EXPECT_EQ(r.exit_code, 2) << fps << ": " << r.err;
     EXPECT_NE(r.err.find("--fps"), std::string::npos) << r.err;
   }
-  const auto r = RunOdvr(base + " --frames 0");
-  EXPECT_EQ(r.exit_code, 2) << r.err;
-  EXPECT_NE(r.err.find("--frames: must be at least 1"), std::string::npos) << r.err;
+  for (const char* frames : {"0", "-1"}) {
+    const auto r = RunOdvr(base + " --frames " + frames);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_NE(r.err.find("--frames"), std::string::npos) << r.err;
+  }
+  // A start that is no distance along the path became the default silently, in export and play;
+  // so did play's --frames 0 ("all").
+  const std::string play = "play --headless --out /nonexistent/frames " + (kDemo / "street.mp4").string() + " --car " +
+                           (kDemo / "car.glb").string();
+  for (const std::string& bad : {base + " --car-start nan", base + " --car-start -3", play + " --car-start nan",
+                                 play + " --car-start -3", play + " --frames 0"}) {
+    const auto r = RunOdvr(bad);
+    EXPECT_EQ(r.exit_code, 2) << bad << "\n" << r.err;
+    EXPECT_NE(r.err.find(bad.find("--frames") != std::string::npos ? "--frames" : "--car-start"), std::string::npos)
+        << r.err;
+  }
 }
 
 // A video whose every frame is undecodable (the demo clip with its media data zeroed): play and

@@ -72,6 +72,11 @@ TEST(RunStitch, BadInputsEndInOneLine) {
   EXPECT_EQ(bad_size.exit_code, 2);
   EXPECT_NE(bad_size.err.find("--size"), std::string::npos) << bad_size.err;
 
+  // 0 stands for "all" inside the command: given, it is a usage error, not every frame.
+  const CliRun no_frames = RunOdvr("stitch --rig x.json --out o --frames 0");
+  EXPECT_EQ(no_frames.exit_code, 2);
+  EXPECT_NE(no_frames.err.find("--frames"), std::string::npos) << no_frames.err;
+
   if (!fs::exists(kStreet / "rig.json")) return;
   // Five camera folders for a six-camera rig.
   for (int c = 0; c < 5; ++c)
