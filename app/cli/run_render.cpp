@@ -72,6 +72,27 @@ void SaveGrey(const std::filesystem::path& path, const std::vector<float>& v, in
   image::SaveImage(path, img);
 }
 
+// The renderer's refusals of its camera and model matrix ("view direction is parallel to up",
+// "is singular") name the flag they came from, as usage errors: a user knows --camera, not the
+// renderer's parameter names.
+render::PinholeCamera CameraFromFlag(const std::vector<double>& cam, int width, int height) {
+  try {
+    return render::PinholeCamera::LookAt({cam[0], cam[1], cam[2]}, {cam[3], cam[4], cam[5]}, cam[6], width, height);
+  } catch (const Error& e) {
+    throw UsageError("--camera", (e.where() == "camera fov" ? "the field of view " : "") + e.reason());
+  }
+}
+
+render::TripleProductRenderer RendererFor(const scene::GltfScene& model, const glm::dmat4& world_from_model,
+                                          const render::RenderOptions& options) {
+  try {
+    return render::TripleProductRenderer(model, world_from_model, options);
+  } catch (const Error& e) {
+    if (e.where() != "world_from_model") throw;
+    throw UsageError("--model-matrix", "the world_from_model matrix " + e.reason());
+  }
+}
+
 int RunRender(const RenderCliOptions& o) {
   using Clock = std::chrono::steady_clock;
   const auto [width, height] = ParseSize(o.size);
@@ -141,7 +162,7 @@ int RunRender(const RenderCliOptions& o) {
     if (!steady.empty()) lighting_ms = Median(std::move(steady));
   }
 
-  render::TripleProductRenderer renderer(model, world_from_model, options);
+  render::TripleProductRenderer renderer = RendererFor(model, world_from_model, options);
   renderer.SetLighting(lighting_model, world_from_env);
   if (!o.background.empty()) {
     renderer.SetBackgroundImage(image::LoadImage(o.background));
@@ -151,7 +172,7 @@ int RunRender(const RenderCliOptions& o) {
 
   render::PinholeCamera camera;
   if (!cam.empty()) {
-    camera = render::PinholeCamera::LookAt({cam[0], cam[1], cam[2]}, {cam[3], cam[4], cam[5]}, cam[6], width, height);
+    camera = CameraFromFlag(cam, width, height);
   } else {
     // Default: the model from its front-left, a little above, filling about half the frame.
     glm::dvec3 lo(-1), hi(1);

@@ -5,8 +5,10 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "engine/image/image_io.h"
 #include "tests/app/run_odvr.h"
@@ -243,7 +245,16 @@ TEST(RunRender, ClearErrors) {
       {"--model " + kCar + " --env " + kPano, 2, "--out"},
       {"--model " + kCar + " --env " + kPano + " --camera 1,2,3,1,2,3,40" + out, 2, "--camera: the target coincides"},
   };
-  for (const auto& c : cases) {
+  std::vector<Case> all(std::begin(cases), std::end(cases));
+  // The renderer's own refusals of the camera and the model matrix name the flag they came from.
+  if (HaveData())
+    all.insert(all.end(), {{"--model " + kCar + " --env " + kPano + " --camera 0,1,0,0,5,0,40" + out, 2,
+                            "--camera: view direction is parallel to up"},
+                           {"--model " + kCar + " --env " + kPano + " --camera 1,2,3,0,0,0,0.01" + out, 2,
+                            "--camera: the field of view must be in"},
+                           {"--model " + kCar + " --env " + kPano + " --model-matrix 1,0,0,0,0,0,0,0,0,0,1,0" + out, 2,
+                            "--model-matrix: the world_from_model matrix is singular"}});
+  for (const auto& c : all) {
     const CliRun r = RunOdvr("render " + c.args);
     EXPECT_EQ(r.exit_code, c.code) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.says), std::string::npos) << c.args << "\n" << r.err;
