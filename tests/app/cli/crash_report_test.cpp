@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -84,6 +85,36 @@ TEST(CrashReport, AWritePastTheFileSizeLimitFailsInsteadOfKilling) {
       },
       testing::ExitedWithCode(3), "wrote 4096 then -1");
   std::filesystem::remove(file);
+}
+
+// A full disk as a user meets it, stood in for by `ulimit -f`: render --out x.png over a good
+// x.png exits 1 naming it, and the good file and no temporary remain (the PNG writer reported
+// success after a short write, and SIGXFSZ killed odvr with its temporary left).
+TEST(CrashReportGL, ARenderPastTheFileSizeLimitFailsAndKeepsTheOldImage) {
+  const std::string street = std::string(ODVR_SHARED_DIR) + "/data/street_a";
+  if (!std::filesystem::exists(street + "/car.glb")) GTEST_SKIP() << "street_a is absent (the shared test data)";
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("odvr_render_fsize_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string render = std::string(ODVR_BINARY) + " render --model " + street + "/car.glb --env " + street +
+                             "/pano_hdr/000010.exr --camera -7,2.06,0.1,0,0.7,0,43 --levels 2 --out " +
+                             (dir / "x.png").string();
+  ASSERT_EQ(std::system((render + " --size 64x32 >/dev/null 2>&1").c_str()), 0);
+  const auto size = std::filesystem::file_size(dir / "x.png");
+  // 8 blocks (4 or 8 KiB, as the shell counts them): the 512x256 image is several times that.
+  const std::string limited = "ulimit -f 8; " + render + " --size 512x256 >/dev/null 2>" + (dir / "err").string();
+  const int status = std::system(("sh -c '" + limited + "'").c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  std::ifstream err(dir / "err");
+  const std::string said((std::istreambuf_iterator<char>(err)), std::istreambuf_iterator<char>());
+  EXPECT_NE(said.find((dir / "x.png").string() + ": cannot write"), std::string::npos) << said;
+  EXPECT_EQ(std::filesystem::file_size(dir / "x.png"), size) << "the good image was replaced";
+  int entries = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++entries;
+  EXPECT_EQ(entries, 2) << "x.png and err: no temporary left";
+  std::filesystem::remove_all(dir);
 }
 
 // SIGTERM while an output is being written: odvr's handler removes the temporary, and the process
