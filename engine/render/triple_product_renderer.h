@@ -21,11 +21,11 @@
 //   would not reproduce the unshadowed integral. With it, all v_i = 1 gives exactly
 //   μ_j ∫G_k G_j, and a light SG sharper than the cones takes the visibility of the cone(s) it
 //   falls in, so a small light casts a directional shadow through a broad lobe.
-// - GGX's tail SG (material::Lobe::tail_share, 45 % of D, 2.5x broader than its peak) is the one
-//   exception: j stops at the deepest level whose detail it shows at its share of the pixel
-//   (OverlapBins::MaxLevel(λ, share)), and s_kj is the lobe's own share s_k (P_kj = G_k). Lit like
-//   the other lobes it made the glossy references' shading 45–70 % slower; so, 0–7 % (bench
-//   render medians, 6 runs beside main's binary), mean_rel within 0.003 of that.
+// - GGX's tail SG (material::Lobe::tail_share, the broad part of D) is the one exception: j
+//   stops at the deepest level whose detail it shows at its share of the pixel
+//   (OverlapBins::MaxLevel(λ, share)), and s_kj is the lobe's own share s_k (P_kj = G_k). Lit
+//   like the other lobes it made the glossy paints' shading much slower for no accuracy this
+//   rule loses (docs/benchmarks/render_accuracy.md, "GGX's tails").
 // - Ground (y = 0, Lambertian, within ground_half_size of the model's centre): the same sums
 //   for the clamped-cosine lobe around +Y, shadowed over unshadowed, per channel: the shadow
 //   ratio. Its lobe, cones and lighting weights are the same at every ground pixel, so the sums
@@ -107,39 +107,34 @@ struct RenderOptions {
   int voxel_resolution = 128;  // 64..512, a power of two
   bool peak_cones = true;      // each peak its own visibility cone (sharp sun shadows)
   // Each peak's visibility from rays against the triangles (a BVH, visibility/triangle_bvh.h)
-  // instead of its cone through the voxels. A peak's cone starts a few voxels out (ConeTraceOptions::
-  // start_offset_voxels) and sees occluders fattened by the conservative voxelization, so it lets a
-  // sun through a recess whose lip is nearer than its first sample and shades the edge of a shadow
-  // too wide; a ray does neither, and a sun's disc is narrow enough for one (a peak wider than 1°,
-  // a lamp, takes seven: detail::PeakRayDirections). Against the Cycles
-  // references (render_accuracy.md) the car's error fell on four of seven (sky_diffuse 0.064 →
-  // 0.052, studio_glossy 0.139 → 0.126) and the shadow's on all four with a peak, for no shading
-  // time on llvmpipe under a sun (studio's 2° lamp, seven rays: 1.2–1.7×; the demo 7 %);
-  // street_a's rose 0.131 → 0.133. The ground's lit fraction under the car (ground_shadows_bounce)
-  // takes the same rays from the ground, so the shadow the car sees in its bounce is the one drawn
-  // on the catcher (studio_glossy 0.126 → 0.124). Off: each peak's cone, as the seed.
+  // instead of its cone through the voxels. A peak's cone starts a few voxels out
+  // (ConeTraceOptions::start_offset_voxels) and sees occluders fattened by the conservative
+  // voxelization, so it lets a sun through a recess whose lip is nearer than its first sample and
+  // shades the edge of a shadow too wide; a ray does neither, and a sun's disc is narrow enough for
+  // one (a peak wider than 1°, a lamp, takes seven: detail::PeakRayDirections). The ground's lit
+  // fraction under the car (ground_shadows_bounce) takes the same rays from the ground, so the
+  // shadow the car sees in its bounce is the one drawn on the catcher. On by default: against the
+  // Cycles references it lowers the car's and the shadow's error on most scenes for little shading
+  // time under a sun (docs/benchmarks/render_accuracy.md). Off: each peak's cone, as the seed.
   bool exact_peak_shadows = true;
   // The G-buffer's shading normal tilted toward the face's own, where the view mirrored about it
-  // would leave below the face, just enough that it leaves at a grazing height (render_gbuffer.frag),
-  // as Cycles bends the normal of every closure. At a car's outline smooth normals turn away from
-  // the camera faster than its triangles do: the view mirrored about them dives into the car, and
-  // the diffuse paints' retro-reflection and the glossy paints' Fresnel both read off there.
-  // Against the Cycles references (render_accuracy.md) the car's error fell on six of seven
-  // (street_a_f10 0.133 → 0.114, sunset_glossy 0.106 → 0.100) and rose on sky_diffuse
-  // (0.052 → 0.055). Off: the interpolated normal as it is.
+  // would leave below the face, just enough that it leaves at a grazing height
+  // (render_gbuffer.frag), as Cycles bends the normal of every closure. At a car's outline smooth
+  // normals turn away from the camera faster than its triangles do: the view mirrored about them
+  // dives into the car, and the diffuse paints' retro-reflection and the glossy paints' Fresnel
+  // both read off there. On by default: it lowers the car's error against the Cycles references on
+  // all but one scene (render_accuracy.md). Off: the interpolated normal as it is.
   bool valid_reflection_normals = true;
   // One bounce of the car's specular light on itself, found in screen space: where a term's
   // specular lobes are occluded (their cones meet the car), the G-buffer is marched along their
   // occlusion-weighted mean direction, and a surface it passes behind is shaded for the view back
   // along it — its specular lobes only, under the peaks (each shadowed from there as the pixel's
   // own), the constant and the lighting's levels 0–1 — and seen through the occluded part of the
-  // lobes. Cycles with one bounce (max bounces 1) is within its noise of the references, and without
-  // the car's light on itself the glossy paints read 3.4–4.2 % dark; the diffuse bounce gives back
-  // little of it (render_accuracy.md, "A radiance per voxel would not close the glossy paints'
-  // gap"), so the hit's diffuse lobe is left out. What the camera does not see (a recess's inner
-  // walls) reflects nothing. Against the Cycles references (render_accuracy.md) sunset_glossy
-  // 0.100 → 0.096, sky_glossy 0.080 → 0.077, street_a_f10 0.114 → 0.111, studio_glossy 0.121 →
-  // 0.120, the diffuse paints +0.0002 at most; on llvmpipe the demo's 1280×720 shading 1.02×.
+  // lobes. Cycles with one bounce is within its noise of the references, and without the car's
+  // light on itself the glossy paints read dark; the diffuse bounce gives back little of it
+  // (render_accuracy.md, "A radiance per voxel would not close the glossy paints' gap"), so the
+  // hit's diffuse lobe is left out. What the camera does not see (a recess's inner walls) reflects
+  // nothing.
   bool specular_bounce = true;
   double bounce_step_voxels = 1.0;       // the march's step, in level-0 voxels
   int bounce_steps = 64;                 // and its length in steps
@@ -147,51 +142,48 @@ struct RenderOptions {
   bool ground = true;                    // the shadow catcher
   double ground_half_size = 30;          // metres around the model's centre (Cycles' 60 m catcher)
   // Light from below the horizon stands for the ground's bounce (see above); the car's shadow
-  // darkens that bounce. Per lobe, the cones whose axes meet the ground within the catcher take
-  // off the ground's radiance (the lighting's cosine-weighted mean below the horizon) times their
+  // darkens that bounce. Per lobe, the cones whose axes meet the ground within the catcher take off
+  // the ground's radiance (the lighting's cosine-weighted mean below the horizon) times their
   // visibility and the ground's shadowed fraction there: one cone straight up of
   // kGroundLitHalfAngle for the broad light, each traced peak's own cone (its rays with
-  // exact_peak_shadows) for its share (detail::GroundLitFraction). Scaling every lighting SG's
-  // share in those cones instead took the sky's light too, wherever the SGs carry the lighting
-  // across the horizon: studio_diffuse read 0.154 against Cycles, 0.117 then
-  // (docs/benchmarks/render_accuracy.md).
-  // Cycles' catcher is shadowed where the car sees it: rendered with the unshadowed stand-in
-  // instead, studio_glossy lands 31 % (mean relative) off its reference, 8 % with the shadow
+  // exact_peak_shadows) for its share (detail::GroundLitFraction). Not by scaling every lighting
+  // SG's share in those cones: wherever the SGs carry the lighting across the horizon, that takes
+  // the sky's light too. On because Cycles' catcher is shadowed where the car sees it: with the
+  // unshadowed stand-in the glossy studio scene lands far off its reference
   // (docs/benchmarks/render_accuracy.md).
   bool ground_shadows_bounce = true;
   // That lit fraction read bilinearly from a grid of at most this many texels along each side
   // (detail::GroundLitMapLayoutFor), traced once per render at each texel, instead of traced from
-  // every point where a car cone meets the ground (0). Those traces were 4 of the H200's 26.5 ms
-  // of 1280×720 shading (docs/benchmarks/h200.md, third run); on llvmpipe the grid takes the
-  // bench's 1×1 rows to a median 0.83× their shade time and moves no mean_rel against Cycles by
-  // more than 0.0007 (docs/benchmarks/render_accuracy.md, "The ground's lit fraction from a grid").
+  // every point where a car cone meets the ground (0). The per-point traces are a visible share of
+  // the shading time; the grid saves most of it and leaves the error against Cycles where it was
+  // (docs/benchmarks/render_accuracy.md, "The ground's lit fraction from a grid").
   int ground_lit_map_texels = 128;
   std::vector<MaterialOverride> materials;
   visibility::ConeSubsampleOptions cones;  // `rings` is taken from cone_rings
   visibility::ConeTraceOptions trace;
   double overlap_min_retention = 1.0 / 13;  // overlap bins' depth rule
-  // The overlap bins' overlap rule (lighting::OverlapBinOptions::cutoff, whose 1e-3 reproduces
-  // the seed's Table 4.2): an SRBF lights a lobe where their product's integral is at least this
-  // fraction of its value with the axes aligned. 1e-2 drops the demo's SGs per car pixel from 797
-  // to 575 and its 1280×720 shading on the H200 from 22.7 to 19.8 ms, and moves no reference's
-  // mean_rel against Cycles by more than 0.0007 (docs/benchmarks/render_lists/, h200.md third run).
+  // The overlap bins' overlap rule (lighting::OverlapBinOptions::cutoff, whose 1e-3 reproduces the
+  // seed's Table 4.2): an SRBF lights a lobe where their product's integral is at least this
+  // fraction of its value with the axes aligned. 1e-2 drops many SGs per car pixel, and shading
+  // time with them, while leaving the error against Cycles where it was
+  // (docs/benchmarks/render_lists/).
   double overlap_cutoff = 1e-2;
   // Each lobe lit only by the lighting levels the depth rule gives its own λ
-  // (lighting::OverlapBins::MaxLevel), not by every level of its bin's list, which goes as deep
-  // as the sharpest lobe the bin serves (bin λ 32 serves up to 128 and lists level 4: 579 SGs).
+  // (lighting::OverlapBins::MaxLevel), not by every level of its bin's list, which goes as deep as
+  // the sharpest lobe the bin serves: a broad lobe would otherwise sum many SGs too fine to show in
+  // it.
   bool depth_per_lobe = true;
   // Car cones start this many level-0 voxels off the surface along its normal (beside
-  // trace.start_offset_voxels along the cone): a conservative voxelization marks the surface's
-  // own voxels and their neighbours, and a wide cone near the horizon would otherwise see them
-  // (a Lambertian sphere under a constant sky keeps 77 % of its light at 0 voxels, 97.5 % at 1,
-  // 99.5 % at 2, at 64³).
+  // trace.start_offset_voxels along the cone): a conservative voxelization marks the surface's own
+  // voxels and their neighbours, and a wide cone near the horizon would otherwise see them. 2 is
+  // the smallest offset at which a Lambertian sphere under a constant sky keeps nearly all its
+  // light (docs/decisions.md, "Figures behind the defaults").
   double surface_offset_voxels = 2.0;
   // How BRDFs become lobes; the GPU pass and the CPU reference implement every mode. The default,
   // chosen by `odvr bench render` (docs/benchmarks/render.md): the anisotropic split with the
-  // cosine at each lobe's axis — against Cycles it cuts the glossy paints' relative L1 (studio
-  // 0.73 → 0.41) for ~30 % more shade time; the cosine as an SG is worse (M at a broad lobe's
-  // axis carries 1/cos θ_i uncancelled: the rough paints read 0.065–0.091 against 0.055–0.066,
-  // and 1.3–1.9 before valid_reflection_normals kept the outline's normals off the grazing view).
+  // cosine at each lobe's axis, which against Cycles takes the glossy paints' error down the most
+  // for a moderate cost in shade time. The cosine as an SG is worse: M at a broad lobe's axis
+  // carries 1/cos θ_i uncancelled, which the rough paints show.
   material::LobeOptions lobes{material::CosineTerm::kAtLobeAxis, material::WarpMode::kAnisotropicSplit};
   // > 0: the shading stage is instead the brute-force Monte-Carlo baseline (render_mc.comp, GPU
   // only, needs SetEnvironment): this many samples per pixel of the environment map itself,
@@ -203,31 +195,29 @@ struct RenderOptions {
   // visibility/triangle_bvh.h) instead of through the voxels; the ground's lit fraction stays the
   // voxel cones'. For attribution: the same estimator with both tells what the voxels cost.
   bool monte_carlo_exact_visibility = false;
-  // Shaded samples per output pixel along each axis (1..4): the G-buffer and the shading run at
-  // k× the camera's size and each layer is resolved to it with Cycles' default pixel filter
-  // (Blackman-Harris, 1.5 px wide), so panel edges, spokes and highlights narrower than a pixel
-  // are averaged over it instead of point-sampled. Against the Cycles references k = 2 took the
-  // glossy paints' and street_a's mean relative error down by 0.007–0.017 and the diffuse ones'
-  // by 0.001–0.005; k = 3 did no better (its filter reaches into the neighbours' samples)
-  // (docs/benchmarks/render.md, render_accuracy.md).
+  // Shaded samples per output pixel along each axis (1..4): the G-buffer and the shading run at k×
+  // the camera's size and each layer is resolved to it with Cycles' default pixel filter
+  // (Blackman-Harris, 1.5 px wide), so panel edges, spokes and highlights narrower than a pixel are
+  // averaged over it instead of point-sampled. Against the Cycles references k = 2 helps the glossy
+  // paints most and the diffuse ones a little; k = 3 does no better, its filter reaching into the
+  // neighbours' samples (docs/benchmarks/render_accuracy.md).
   int supersample = 1;
   // With supersample > 1, each pixel's other samples are shaded only where it needs them
   // (render_flag.comp): where its samples see different surfaces (coverage, material, a normal
-  // turning past 25°) or where the car's luminance at the samples nearest the pixels' centres
-  // bends across it (|Y₋ + Y₊ − 2Y₀| along a row, column or diagonal) by more than this fraction
-  // of the largest (the shadow ratio: by more than this); elsewhere that one sample stands for
-  // the pixel. 0: every sample of every pixel. At 0.05 (k = 2) every reference's error was the
-  // every-sample one's within 0.001, for 1.3–2.2× less shading time; the Monte-Carlo baseline
+  // turning past 25°) or where the car's luminance at the samples nearest the pixels' centres bends
+  // across it (|Y₋ + Y₊ − 2Y₀| along a row, column or diagonal) by more than this fraction of the
+  // largest (the shadow ratio: by more than this); elsewhere that one sample stands for the pixel.
+  // 0: every sample of every pixel. The default keeps every reference's error at the every-sample
+  // one's for much less shading (docs/benchmarks/render_accuracy.md); the Monte-Carlo baseline
   // always shades every sample.
   double supersample_contrast = 0.05;
   // 1 shades every pixel. 2 shades one pixel of each 2×2 block (its lower right), then every pixel
   // of the blocks that need it — by render_flag.comp's tests at supersample_contrast, and where a
   // neighbouring block's shaded pixel, which the fill reads, sees another surface — and fills the
   // other blocks' pixels midway between shaded ones (render_fill.comp): a smooth body costs a
-  // quarter. On llvmpipe the demo's 1280×720 shading took 0.53× the time and no reference moved
-  // against Cycles by more than 0.0002 (docs/benchmarks/render_accuracy.md). Only without
-  // supersampling and the Monte-Carlo baseline; a block an odd width or height cuts is shaded
-  // whole. RenderCounts' per-car-pixel means then count a filled pixel's work as 0.
+  // quarter, and the error against Cycles stays where it was (docs/benchmarks/render_accuracy.md).
+  // Only without supersampling and the Monte-Carlo baseline; a block an odd width or height cuts is
+  // shaded whole. RenderCounts' per-car-pixel means then count a filled pixel's work as 0.
   int shading_rate = 1;
   // What a GPU render reads back. true: every layer (car, shadow, background, composite) and the
   // counts per shaded sample, summed on the CPU. false: the composite alone and the counts summed
@@ -239,10 +229,9 @@ struct RenderOptions {
   // window that draws it from there; RenderResult::composite stays empty.
   bool read_composite = true;
   // GPU shading: invocations per pixel (1, 2 or 4), each shading every L-th of the pixel's lobes,
-  // summed in shared memory (render_shade.comp). The same picture within float rounding; more
-  // lanes shorten a pixel's serial chain and add the lanes' repeated set-up and registers. On the
-  // H200 4 lanes shade 320×180 in 7.4 ms against 12.4, but 1280×720 in 35.7 against 27.0 (the GPU
-  // is full there); on llvmpipe they only cost. 0 (the default): each render picks
+  // summed in shared memory (render_shade.comp). The same picture within float rounding; more lanes
+  // shorten a pixel's serial chain and add the lanes' repeated set-up and registers, so they pay
+  // only where the GPU would otherwise sit idle. 0 (the default): each render picks
   // (ShadeLanesFor), from the size of its first shading pass and the device.
   int shade_lanes = 0;
   void Check() const;  // throws odvr::Error naming the field
@@ -255,7 +244,7 @@ enum class ShadeDevice { kGpu, kCpu };
 // kAutoShadeLanesMaxPixels pixels (blocks at shading rate 2) on a GPU, where one invocation per
 // pixel leaves most of it idle and a pixel's serial chain sets the time; 1 on larger passes (the
 // GPU full) and on a CPU rasterizer, whose threads are full at any size. The bound lies between
-// the sizes the H200 measured either way: 320×180 (57 600) and 1280×720 (921 600).
+// pass sizes measured to favour either (docs/benchmarks/h200.md).
 inline constexpr long long kAutoShadeLanesMaxPixels = 1 << 16;
 int ShadeLanesFor(long long first_pass_pixels, bool software_renderer);
 
