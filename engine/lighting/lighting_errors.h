@@ -1,10 +1,9 @@
 #pragma once
-// How good is a lighting model, as the image will show it? (issue 3, "errors that mean
-// something for HDR light"). A sun holds most of a sunny map's energy in a few pixels, so the raw
-// relative L2 error stays near 1 for any compact model; what reaches the picture is the light
-// convolved with a BRDF lobe. So, besides rel_l2, the input and the model are each convolved with
-// a clamped cosine (diffuse_error) and with SG lobes of λ = 20 and λ = 200 (glossy20_error,
-// glossy200_error), evaluated at the 768 level-3 HEALPix directions:
+// How good is a lighting model, as the image will show it? A sun holds most of a sunny map's energy
+// in a few pixels, so the raw relative L2 error stays near 1 for any compact model; what reaches
+// the picture is the light convolved with a BRDF lobe. So, besides rel_l2, the input and the model
+// are each convolved with a clamped cosine (diffuse_error) and with SG lobes of λ = 20 and λ = 200
+// (glossy20_error, glossy200_error), evaluated at the 768 level-3 HEALPix directions:
 //   error = ‖conv(I) − conv(R)‖₂ / ‖conv(I)‖₂.
 // conv(I) is integrated numerically on an area-resampled grid (512×256 for the smooth kernels,
 // 1024×512 for λ = 200), but for pixels over 20× the mean (a sun), which are summed at their own

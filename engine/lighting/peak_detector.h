@@ -7,21 +7,19 @@
 // HDR frames: pixels brighter than `threshold_factor` × the mean radiance are grouped into
 // connected components (8-connected, joined across the ±180° seam and at each pole), looking
 // only into the `candidate_block`-sized blocks whose brightest pixel is over the threshold.
-// A component whose brightest pixel is under `min_contrast` × its surrounding level is a glow,
-// left to the hierarchy. The 10 is chosen, not derived: it sits in the gap measured over
-// ../shared/data/env (suns 128–3300×, dawn's glow 4.2×, which as peaks raised glossy200 6×).
-// A component whose single fitted SG has λ under `min_lambda` is also left to the hierarchy: it
-// is broad (bridge.exr's 15 000-pixel glow of contrast 15: λ 11.5; lobby.exr's window: λ 229;
-// two of warehouse.exr's lamps: 330), levels 0–3 (λ up to 364.5) resolve it, and free SGs fitted
-// to its shape do worse: at 5 levels on 1024-wide frames, bridge's glossy200 0.016 without peaks,
-// 0.373 with them; lobby's 0.019, 0.022; warehouse's glossy20 +7 %. With the gate no map's three
-// errors are worse than without peaks except studio's and sunset's glossy20 (their lights fit
-// λ 1150 and 19 600). The suns of the five sunny maps fit λ 4700–20 000. So an elongated light
-// is split into 2–3 SGs only when it is compact as a whole: a strip up to ~12° long.
+// A component whose brightest pixel is under `min_contrast` × its surrounding level is a glow, left
+// to the hierarchy. The 10 is chosen, not derived: it sits in the wide gap between the suns'
+// contrast and the brightest glow's over ../shared/data/env, and a glow taken as a peak raises the
+// glossy errors many times over (decision 12 in docs/decisions.md).
+// A component whose single fitted SG has λ under `min_lambda` is also left to the hierarchy: it is
+// broad (a window, a large lamp, a glow), levels 0–3 (λ up to 364.5) resolve it, and free SGs
+// fitted to its shape do worse. With the gate no map's errors are worse than without peaks except
+// two whose compact lights fit well above the gate; the suns fit far above it. So an elongated
+// light is split into 2–3 SGs only when it is compact as a whole: a strip up to ~12° long.
 //
 // LDR frames (every value ≤ 1): a sun is a compact blob clipped at 255, its true intensity lost.
 // Clipped is not bright, though: a white wall, a grid line, a window are clipped too, and as
-// "suns" of estimated energy they put phantom lights of amplitude ~2000 on a room's white lines.
+// "suns" of estimated energy they put bright phantom lights on a room's white lines.
 // A clipped component counts only where a sun can be: above the horizon, compact (within
 // `ldr_max_sun_radius_deg` of its centre), round (principal axes within `ldr_max_elongation`)
 // and standing out from its ring (the ring under `ldr_max_ring_level` × the clip level, not the

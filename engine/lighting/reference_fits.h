@@ -1,5 +1,5 @@
 #pragma once
-// The references `odvr bench light` holds the residual transform against (issue 3):
+// The references `odvr bench light` holds the residual transform against:
 // - the least-squares optimum on the same SG basis: the amplitudes of the constant and of every
 //   SRBF of levels 0..L−1 that minimise ∫ (I − Σ μ_j B_j)² dω, the best any choice of amplitudes
 //   can do in L2. The Gram matrix ∫ B_i B_j is closed-form (eq. 4.7) and sparse (entries below

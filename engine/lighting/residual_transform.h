@@ -53,68 +53,53 @@ struct ResidualTransformOptions {
   Normalization normalization = Normalization::kPartition;
   int sweeps = 2;  // eq. 4.17 passes per level of λ < 300 (levels 0–2); 1 is the seed's single pass
   // Passes at the levels narrower than the glossy-200 lobe (λ ≥ 300: levels 3–5). Each pass refits
-  // what the level left (a Richardson step towards the level's partition-weighted fit); two left
-  // the glossy-200 error 1.4–6.3x the least-squares optimum's on studio, dawn, bridge, hall,
-  // venice, park and sky at 2048 wide, four take it to 0.9–2.7x (`odvr bench light --fine-sweeps`);
-  // three over-relaxed ones (below) do as well as four.
+  // what the level left (a Richardson step towards the level's partition-weighted fit). Two leave
+  // the glossy-200 error well above the least-squares optimum's on most maps; four bring it near;
+  // three over-relaxed ones (below) do as well as four (`odvr bench light --fine-sweeps`).
   int fine_sweeps = 3;
   // The step of those refits at the fine levels: μ += ω · projection(r − L_s)/S̄. The
-  // partition-weighted projection of a level's own reconstruction shrinks it (the iteration
-  // converged for every ω up to 1.9 over 16 passes on hall and bridge at 1024 wide), so
-  // over-relaxing moves faster towards the same fit: on the 18 maps at 2048 wide with peaks, three
-  // passes at ω = 1.7 left each glossy-200 ratio to the least-squares optimum below or within 0.03
-  // of four passes at ω = 1 (bridge 1.48 → 1.23, forest 1.30 → 1.18 in `odvr bench light`), the
-  // glossy-20 ratios within 0.05, for one pass less per fine level. One pass fewer again (two, at
-  // ω = 1.7 or 1.9) saved 11 % of the 5-level time at 2048 wide (median 8.2 → 7.3 ms) but took
-  // bridge's glossy-200 ratio from 1.16 to 2.15 and 2.38 (2026-12-05, with peaks): three stay.
-  // Since the sweeps run on the amplitudes (LevelGram) a sweep costs a product with a sparse
-  // matrix, not a pass over the grid, but more do not buy much: six at ω = 1.7 (bridge, forest,
-  // hall, studio, venice, park at 2048 wide) took bridge's glossy-200 ratio 1.16 → 0.97 and moved
-  // the others both ways by up to 0.24 (studio's diffuse without peaks 1.77 → 1.53, park's
-  // glossy-20 1.31 → 1.45).
+  // partition-weighted projection of a level's own reconstruction shrinks it, so the iteration
+  // converges for ω well above 1 and over-relaxing moves faster towards the same fit. 1.7 with
+  // three passes matches four plain passes for one pass less per fine level; two passes lose
+  // accuracy on the sunny maps, and more than three buy little now that a sweep is a sparse product
+  // (LevelGram), not a pass over the grid (docs/decisions.md, "Figures behind the defaults").
   double fine_relaxation = 1.7;
-  // Working width of level s: base_width·2^s (at least 64, at most the input's). 32 puts level 4
-  // (σ = 1.5°) on a 512-wide grid, two pixels per σ: `odvr bench light --base-width 32|64` on
-  // sky, city and park at 2048 wide measured 5-10x less time for the same convolved errors
-  // within 0.001 (docs/benchmarks/lighting.md).
+  // Working width of level s: base_width·2^s (at least 64, at most the input's). 32 puts level 4 (σ
+  // = 1.5°) on a 512-wide grid, two pixels per σ: the narrowest schedule whose convolved errors
+  // match the wider ones', for far less time (docs/benchmarks/lighting.md; decision 8 in
+  // docs/decisions.md).
   int base_width = 32;
   int threads = 0;  // CPU threads (0: all cores)
   double region_cutoff = 1e-3;
-  // The cap of the broad levels (λ < 300: levels 0–2). A cap cut at 1e-3 leaves 0.1 % of each
-  // SG's energy outside it, 20–100° from its centre for these lobes; the finer levels never see
-  // it (their residue is computed from the same caps), yet the model, evaluated as whole SGs,
-  // holds it. Cut at 1e-5 there, venice's glossy-20 ratio to the least-squares optimum falls
-  // from 2.65 to 0.69 and dawn's from 1.22 to 0.51 (2048 wide, 5 levels); the finer levels' caps
-  // lie within 11° of their centres, and cutting them at 1e-5 too moved no ratio by more than 0.05.
+  // The cap of the broad levels (λ < 300: levels 0–2). A cap cut at 1e-3 leaves 0.1 % of each SG's
+  // energy outside it, 20–100° from its centre for these lobes; the finer levels never see it
+  // (their residue is computed from the same caps), yet the model, evaluated as whole SGs, holds
+  // it. Cut at 1e-5 there, the glossy-20 errors of the maps that showed it fall to near the
+  // optimum; the finer levels' caps lie within 11° of their centres, and a deeper cut there changes
+  // nothing that matters.
   double broad_region_cutoff = 1e-5;
   // R_{<s} on level s's grid: every coarser level evaluated there (true), or the coarser grid's
-  // reconstruction magnified plus level s−1 evaluated (false). Each level fits the
-  // magnification's error of the coarser ones, which the model (evaluated exactly) does not
-  // contain: magnified bilinearly, that bias held the diffuse and glossy-20 errors of the 18 issue-3
-  // maps at up to 5.7x and 21x the least-squares optimum (2048 wide, 5 levels). Through six samples
-  // per axis (sphere::MagnifyLagrange) the error of level s−2's Gaussians, 4.3 coarse pixels per σ,
-  // falls from 9e-3 to 2.5e-5 of their peak, and every error of those maps stays within 0.8 % of
-  // the exact evaluation's (with and without peaks, 1 to 5 levels; at 6, whose errors near 1e-5
-  // are float's floor, diffuse and glossy-20 move up to 12 % either way, glossy-200 0.5 %), for
-  // 14 % less time at 2048 wide, 5 levels (sky: 7.0 → 6.0 ms): the coarser levels evaluated on
-  // the finest grid were 30 % of level 4's time.
+  // reconstruction magnified plus level s−1 evaluated (false). Each level fits the magnification's
+  // error of the coarser ones, which the model (evaluated exactly) does not contain: magnified
+  // bilinearly, that bias held the diffuse and glossy-20 errors far above the least-squares
+  // optimum. Through six samples per axis (sphere::MagnifyLagrange) the error of level s−2's
+  // Gaussians, 4.3 coarse pixels per σ, falls to float's floor, and every error stays close to the
+  // exact evaluation's for less time: evaluating the coarser levels on the finest grid is a large
+  // share of level 4's work (decision 9 in docs/decisions.md).
   bool exact_reconstruction = false;
   // After the last level, the two levels below it refit what every level left (a multigrid
   // V-cycle's restriction leg, finer first, each refitting what the other left): a level's fit
   // leaves a low-frequency error in its residue that the finer levels' narrow lobes do not take
-  // back. hall's glossy-20 error rises from 0.0041 to 0.0044 when level 4 is added, where the
-  // least-squares optimum's falls to 0.0014; with the refit it is 0.0014 (2048 wide, peaks; before
-  // the grids were resampled by solid angle: 0.0036 → 0.0046, optimum 0.0016).
-  // Measured on the 18 maps at 2048 wide, 5 levels (docs/benchmarks/lighting.md):
-  // - on the upper level's grid, the residue restricted by solid angle. Levels 0–1 refit too,
-  //   but on their own 64-wide grid, made lab's and lobby's errors 5-10x worse: a coarse pixel's
-  //   weight stands for a footprint over which both the residue (of either sign, as large as the
-  //   radiance near a lamp) and the SRBF vary, an error far above the low-frequency part being
-  //   sought. On a 256-wide grid they did help, for 3x the time;
-  // - the refit steps at kCoarseCorrectionStep, not 1: full steps overshot on workshop (diffuse
-  //   1.51x the optimum).
-  // It costs about 0.6 ms at 2048 wide (levels 3 and 2 on level 3's 256-wide grid), and runs from
-  // 5 levels on (CoarseCorrectionApplies).
+  // back, so an added level can raise a glossy error while the least-squares optimum's falls; the
+  // refit takes it to the optimum. The choices (docs/benchmarks/lighting.md):
+  //  - on the upper level's grid, the residue restricted by solid angle. Levels 0–1 refitting on
+  //    their own 64-wide grid made errors worse: a coarse pixel's weight stands for a footprint over
+  //    which both the residue (of either sign, as large as the radiance near a lamp) and the SRBF
+  //    vary, an error far above the low-frequency part being sought; on a finer grid they help, for
+  //    several times the time;
+  //  - the refit steps at kCoarseCorrectionStep, not 1: full steps overshoot.
+  // It costs a small fraction of a frame (levels 3 and 2 on level 3's grid), and runs from 5 levels
+  // on (CoarseCorrectionApplies).
   bool coarse_correction = true;
   void Check() const;  // throws odvr::Error
 };
@@ -264,11 +249,9 @@ double RegionCutoffOf(const ResidualTransformOptions& options, int level);
 
 // Whether the coarse correction runs after `kept_levels` levels (0..kept_levels−1) were kept: not
 // once the residue fell below the stop threshold (`converged`: nothing left to refit), and only
-// when the finest kept level is one of the narrow ones (level 4 up, λ ≥ 1449). With 3 or 4
-// levels the refit levels work on a 64- or 128-wide grid, where it moved the errors either way
-// (2048 wide, peaks: lab's diffuse error at 3 levels 0.0036 → 0.0044, hall's at 4 levels
-// 0.00087 → 0.00051; within 1.5x of the optimum at 4 levels on 10 of 18 maps against 11 without
-// it) at 0.2-0.3 ms.
+// when the finest kept level is one of the narrow ones (level 4 up, λ ≥ 1449). With 3 or 4 levels
+// the refit levels work on a 64- or 128-wide grid, too coarse for the low-frequency error: there it
+// moved the errors either way, as many maps worse as better.
 inline bool CoarseCorrectionApplies(const ResidualTransformOptions& options, int kept_levels, bool converged) {
   return options.coarse_correction && !converged && kept_levels >= 5;
 }
