@@ -83,15 +83,13 @@ struct ConeTraceOptions {
   // trilinear footprint, a voxel around the sample, is about the cone's own.
   double step_scale = 0.5;
   // Transmittance of one voxel of opacity α is (1 − α)^κ. A fully opaque voxel stops the cone
-  // whatever κ; κ < 1 lets a partly covered voxel block less than its coverage, because
-  // successive samples along a cone see the same occluder (the bottom, side and top of a wall
-  // cover the same rays) while compositing treats them as independent, and because the
-  // conservative voxelization marks every voxel a surface touches, so partial coverage
-  // overstates the surface's. With a wall's edge across the 7 cones of an SG lobe (cones_test)
-  // the lobe's visibility is within 0.07 of the ray-cast truth at κ = 0.5, within 0.17 at κ = 1.
-  // Against the Cycles references (render_accuracy.md) κ = 0.3 beat 0.5 on every car but
-  // studio_glossy (unchanged) and halved sunset_diffuse's shadow error; 0.2 made the shadows worse
-  // again (studio's 0.076 → 0.093).
+  // whatever κ; κ < 1 lets a partly covered voxel block less than its coverage, because successive
+  // samples along a cone see the same occluder (the bottom, side and top of a wall cover the same
+  // rays) while compositing treats them as independent, and because the conservative voxelization
+  // marks every voxel a surface touches, so partial coverage overstates the surface's. With a
+  // wall's edge across the 7 cones of an SG lobe (cones_test) 0.5 is nearer the ray-cast truth than
+  // 1; against the Cycles references 0.3 beat 0.5 on the cars and the shadows, and lower values
+  // made the shadows worse again (docs/benchmarks/render_accuracy.md).
   double partial_opacity_exponent = 0.3;
   // Tracing stops here (metres from the origin); 0 = where the ray leaves the grid.
   double max_distance = 0;

@@ -6,7 +6,7 @@
 // Why a compute shader and not the rasterizer: the seed voxelizes in one render pass, a geometry
 // shader projecting each triangle on its dominant axis and enlarging it for conservativeness.
 // The enlargement over-covers (by up to a voxel at sharp corners, so the result depends on the
-// triangle's shape) and, without GL_NV/INTEL conservative rasterization, which llvmpipe lacks,
+// triangle's shape) and, without GL_NV/INTEL conservative rasterization, which software drivers lack,
 // it is the only way to be conservative. A compute invocation per triangle walking the columns
 // of its dominant axis does the same projection and then the exact triangle–box test: the
 // voxels marked are exactly the CPU reference's (up to float rounding on exact contact), on
