@@ -39,7 +39,7 @@ bool IsSoftwareRenderer(const std::string& gl_renderer);
 bool CurrentRendererIsSoftware();
 
 // A 4.5 core context with no window. Prefers a hardware EGL device (NVIDIA's EGL device
-// platform) and falls back to Mesa's surfaceless platform (llvmpipe on machines without a GPU).
+// platform) and falls back to Mesa's surfaceless platform (a software rasterizer without a GPU).
 // Set ODVR_EGL_PLATFORM=surfaceless|device to force one. Throws odvr::Error when neither works.
 // ODVR_GL_DEBUG=1 makes it a debug context whose GL errors and warnings go to the log.
 class HeadlessContext {

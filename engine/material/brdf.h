@@ -56,8 +56,8 @@
 //   FL FV (RR − 1))], FL = (1 − n·wi)⁵, FV = (1 − n·wo)⁵, RR = roughness (1 + wi·wo): the
 //   retro-reflection of rough surfaces brightens grazing views and light from behind the viewer.
 //   The Principled BSDF adds its specular layer on top of the diffuse one, without the glTF
-//   spec's (1 − F) on the diffuse: measured against Cycles, a Lambertian (1 − F) diffuse was
-//   9–12 % dark on the diffuse paints (docs/benchmarks/render_accuracy.md). The lobes: the clamped
+//   spec's (1 − F) on the diffuse: against Cycles a Lambertian (1 − F) diffuse read the diffuse
+//   paints clearly dark (docs/benchmarks/render_accuracy.md). The lobes: the clamped
 //   cosine with f_d's terms constant in FL as its weight and exact linear factor (Lobe::linear:
 //   the retro-reflection at grazing views FV r (1 + wi·wo)), the FL terms (light at grazing
 //   incidence) as its grazing factor (Lobe::grazing, integrated through ClampedCosineGrazingMean,
@@ -81,8 +81,9 @@
 namespace odvr::material {
 
 inline constexpr double kMinCosView = 1e-3;
-// The mirror limit: λ ≈ 2/α² = 5·10⁵ in half-vector space. At 0.01 (λ 2·10⁴) it widened
-// street_a's glass (α 0.0025) and headlamps (0.0064): car error 0.1102 against 0.1079 now.
+// The mirror limit: λ ≈ 2/α² = 5·10⁵ in half-vector space. Low enough to leave a car's glass and
+// headlamps (α below 0.01) their own sharpness: a floor of 0.01 widened them and raised the car's
+// error against Cycles (docs/benchmarks/render_accuracy.md, kMinAlpha).
 inline constexpr double kMinAlpha = 0.002;
 inline constexpr int kMaxAnisotropicLobes = 15;
 // GGX's two-SG fit (GgxSg): for small α, D π α² = 1/(1 + u²)² in u = θ_h/α, fitted by
