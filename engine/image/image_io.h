@@ -21,10 +21,9 @@ struct LoadOptions {
   bool require_equirect = false;  // width must be 2 × height
   // The input rows read per call (as float RGB(A)). OpenImageIO 2.4 allocates its conversion
   // buffer, up to 64 MB, on every read_scanlines call whatever the range, so reading one row at
-  // a time cost a 1024x512 EXR 512 of them (25 s under AddressSanitizer); one block of the whole
-  // frame leaves the cache between the library's copy and ours. `BM_LoadImage` (microbench.md):
-  // of 1 row, 256 KB, 1, 4 and 32 MB, 1 MB was the fastest on two of three files, within 2 % on
-  // the third (a PNG); a 1024-wide frame in one block read 2.8x (EXR) and 3.6x (PNG) its time.
+  // a time allocates it once per row; one block of the whole frame leaves the cache between the
+  // library's copy and ours. 1 MB sits between the two: `BM_LoadImage` (microbench.md) measures
+  // the block sizes around it.
   std::size_t read_block_bytes = std::size_t{1} << 20;
   // Larger files are refused from their header, before any pixel is read: 2^28 pixels (a 23k x 11k
   // panorama, twice the widest consumer 360° frame) at most, and 65536 wide, which bounds one

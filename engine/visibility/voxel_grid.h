@@ -73,10 +73,9 @@ struct ConeTraceOptions {
   // The first sample is this many level-0 voxels from the origin: the origin's own surface
   // marks its voxel and the conservative neighbour, and the trilinear filter spreads them by one
   // more, so a cone starting inside that band sees itself — most of all a grazing one, which
-  // stays near its own surface for several voxels. Against the Cycles references
-  // (`odvr bench render`, 128³, docs/benchmarks/render_accuracy.md) every car and shadow error
-  // fell from 2 to 3 to 4 voxels, the SG renderer's and the Monte-Carlo shader's alike; the
-  // shadow errors did not rise, so the contact shadows it skips are not missed there.
+  // stays near its own surface for several voxels. Against the Cycles references every car and
+  // shadow error falls as the offset grows to 4, for both shaders, so the contact shadows it skips
+  // are not missed there (docs/benchmarks/render_accuracy.md).
   double start_offset_voxels = 4.0;
   // The voxel of a sample's mip level as a fraction of the cone's diameter there (rounded to a
   // level); samples are one such voxel apart along the direction's dominant axis. At 0.5 the
