@@ -61,7 +61,7 @@ struct StitchOptions {
   // its half-width (and half-height), and is 1 inside: overlaps then average the cameras evenly,
   // which averages away more of their noise than a tent across the whole image (1 = that tent).
   // 0.1 loses nothing measurable against an unfeathered average on street_a's ground truth while
-  // still fading each camera out before its edge (docs/decisions.md, "Figures behind the defaults").
+  // still fading each camera out before its edge.
   double feather_margin = 0.1;
   // Sample a camera from its half-resolution level (2x2 box averages, a mipmap's level 1)
   // rather than its own pixels. kAuto: for the cameras the output samples more coarsely than

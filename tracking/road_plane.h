@@ -16,8 +16,7 @@ struct RoadPlaneOptions {
   // the rig, where it is best triangulated; facades far off rarely look this steep).
   double min_depression_deg = 15;
   // ... and within this angle of straight down seen across the rig (atan(|y_rig| / -z_rig)): the
-  // lane the rig drives in, not the sidewalk a step to the side, whose kerb would bias the scale
-  // (docs/decisions.md, "Figures behind the defaults").
+  // lane the rig drives in, not the sidewalk a step to the side, whose kerb would bias the scale.
   double max_side_angle_deg = 35;
   // Inlier band, relative to the median depth of the candidates below the rig (about the rig
   // height, whatever unit the reconstruction is in): 1.5 % is 3 cm at 2 m, below a kerb's 15 cm.

@@ -22,7 +22,7 @@ struct LoadOptions {
   // The input rows read per call (as float RGB(A)). OpenImageIO 2.4 allocates its conversion
   // buffer, up to 64 MB, on every read_scanlines call whatever the range, so reading one row at
   // a time allocates it once per row; one block of the whole frame leaves the cache between the
-  // library's copy and ours. 1 MB sits between the two: `BM_LoadImage` (microbench.md) measures
+  // library's copy and ours. 1 MB sits between the two: `BM_LoadImage` measures
   // the block sizes around it.
   std::size_t read_block_bytes = std::size_t{1} << 20;
   // Larger files are refused from their header, before any pixel is read: 2^28 pixels (a 23k x 11k

@@ -10,7 +10,7 @@
 // A component whose brightest pixel is under `min_contrast` × its surrounding level is a glow, left
 // to the hierarchy. The 10 is chosen, not derived: it sits in the wide gap between the suns'
 // contrast and the brightest glow's over ../shared/data/env, and a glow taken as a peak raises the
-// glossy errors many times over (decision 12 in docs/decisions.md).
+// glossy errors many times over.
 // A component whose single fitted SG has λ under `min_lambda` is also left to the hierarchy: it is
 // broad (a window, a large lamp, a glow), levels 0–3 (λ up to 364.5) resolve it, and free SGs
 // fitted to its shape do worse. With the gate no map's errors are worse than without peaks except

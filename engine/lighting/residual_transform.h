@@ -62,12 +62,11 @@ struct ResidualTransformOptions {
   // converges for ω well above 1 and over-relaxing moves faster towards the same fit. 1.7 with
   // three passes matches four plain passes for one pass less per fine level; two passes lose
   // accuracy on the sunny maps, and more than three buy little now that a sweep is a sparse product
-  // (LevelGram), not a pass over the grid (docs/decisions.md, "Figures behind the defaults").
+  // (LevelGram), not a pass over the grid.
   double fine_relaxation = 1.7;
   // Working width of level s: base_width·2^s (at least 64, at most the input's). 32 puts level 4 (σ
   // = 1.5°) on a 512-wide grid, two pixels per σ: the narrowest schedule whose convolved errors
-  // match the wider ones', for far less time (docs/benchmarks/lighting.md; decision 8 in
-  // docs/decisions.md).
+  // match the wider ones', for far less time.
   int base_width = 32;
   int threads = 0;  // CPU threads (0: all cores)
   double region_cutoff = 1e-3;
@@ -85,13 +84,13 @@ struct ResidualTransformOptions {
   // optimum. Through six samples per axis (sphere::MagnifyLagrange) the error of level s−2's
   // Gaussians, 4.3 coarse pixels per σ, falls to float's floor, and every error stays close to the
   // exact evaluation's for less time: evaluating the coarser levels on the finest grid is a large
-  // share of level 4's work (decision 9 in docs/decisions.md).
+  // share of level 4's work.
   bool exact_reconstruction = false;
   // After the last level, the two levels below it refit what every level left (a multigrid
   // V-cycle's restriction leg, finer first, each refitting what the other left): a level's fit
   // leaves a low-frequency error in its residue that the finer levels' narrow lobes do not take
   // back, so an added level can raise a glossy error while the least-squares optimum's falls; the
-  // refit takes it to the optimum. The choices (docs/benchmarks/lighting.md):
+  // refit takes it to the optimum. The choices:
   //  - on the upper level's grid, the residue restricted by solid angle. Levels 0–1 refitting on
   //    their own 64-wide grid made errors worse: a coarse pixel's weight stands for a footprint over
   //    which both the residue (of either sign, as large as the radiance near a lamp) and the SRBF

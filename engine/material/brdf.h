@@ -51,13 +51,13 @@
 //   Fresnel of IOR 1.5 remapped from 0.04 to F0 (Fresnel::kPrincipled), where glTF's Schlick has
 //   (1 − cos)⁵ (a dielectric reflects 1.2–1.3× Schlick's at 45–65°), and G the separable Smith
 //   G1(wi) G1(wo), not the height-correlated one; against the Cycles references every paint's
-//   error fell with them (docs/benchmarks/render_accuracy.md, "The Principled BSDF's specular").
+//   error fell with them.
 //   f_d is Cycles' principled diffuse (Burley 2015): (1/π)[(1 − FL/2)(1 − FV/2) + RR (FL + FV +
 //   FL FV (RR − 1))], FL = (1 − n·wi)⁵, FV = (1 − n·wo)⁵, RR = roughness (1 + wi·wo): the
 //   retro-reflection of rough surfaces brightens grazing views and light from behind the viewer.
 //   The Principled BSDF adds its specular layer on top of the diffuse one, without the glTF
 //   spec's (1 − F) on the diffuse: against Cycles a Lambertian (1 − F) diffuse read the diffuse
-//   paints clearly dark (docs/benchmarks/render_accuracy.md). The lobes: the clamped
+//   paints clearly dark. The lobes: the clamped
 //   cosine with f_d's terms constant in FL as its weight and exact linear factor (Lobe::linear:
 //   the retro-reflection at grazing views FV r (1 + wi·wo)), the FL terms (light at grazing
 //   incidence) as its grazing factor (Lobe::grazing, integrated through ClampedCosineGrazingMean,
@@ -83,7 +83,7 @@ namespace odvr::material {
 inline constexpr double kMinCosView = 1e-3;
 // The mirror limit: λ ≈ 2/α² = 5·10⁵ in half-vector space. Low enough to leave a car's glass and
 // headlamps (α below 0.01) their own sharpness: a floor of 0.01 widened them and raised the car's
-// error against Cycles (docs/benchmarks/render_accuracy.md, kMinAlpha).
+// error against Cycles.
 inline constexpr double kMinAlpha = 0.002;
 inline constexpr int kMaxAnisotropicLobes = 15;
 // GGX's two-SG fit (GgxSg): for small α, D π α² = 1/(1 + u²)² in u = θ_h/α, fitted by

@@ -25,7 +25,7 @@
 //   stops at the deepest level whose detail it shows at its share of the pixel
 //   (OverlapBins::MaxLevel(λ, share)), and s_kj is the lobe's own share s_k (P_kj = G_k). Lit
 //   like the other lobes it made the glossy paints' shading much slower for no accuracy this
-//   rule loses (docs/benchmarks/render_accuracy.md, "GGX's tails").
+//   rule loses.
 // - Ground (y = 0, Lambertian, within ground_half_size of the model's centre): the same sums
 //   for the clamped-cosine lobe around +Y, shadowed over unshadowed, per channel: the shadow
 //   ratio. Its lobe, cones and lighting weights are the same at every ground pixel, so the sums
@@ -115,7 +115,7 @@ struct RenderOptions {
   // fraction under the car (ground_shadows_bounce) takes the same rays from the ground, so the
   // shadow the car sees in its bounce is the one drawn on the catcher. On by default: against the
   // Cycles references it lowers the car's and the shadow's error on most scenes for little shading
-  // time under a sun (docs/benchmarks/render_accuracy.md). Off: each peak's cone, as the seed.
+  // time under a sun. Off: each peak's cone, as the seed.
   bool exact_peak_shadows = true;
   // The G-buffer's shading normal tilted toward the face's own, where the view mirrored about it
   // would leave below the face, just enough that it leaves at a grazing height
@@ -123,7 +123,7 @@ struct RenderOptions {
   // normals turn away from the camera faster than its triangles do: the view mirrored about them
   // dives into the car, and the diffuse paints' retro-reflection and the glossy paints' Fresnel
   // both read off there. On by default: it lowers the car's error against the Cycles references on
-  // all but one scene (render_accuracy.md). Off: the interpolated normal as it is.
+  // all but one scene. Off: the interpolated normal as it is.
   bool valid_reflection_normals = true;
   // One bounce of the car's specular light on itself, found in screen space: where a term's
   // specular lobes are occluded (their cones meet the car), the G-buffer is marched along their
@@ -131,8 +131,7 @@ struct RenderOptions {
   // along it — its specular lobes only, under the peaks (each shadowed from there as the pixel's
   // own), the constant and the lighting's levels 0–1 — and seen through the occluded part of the
   // lobes. Cycles with one bounce is within its noise of the references, and without the car's
-  // light on itself the glossy paints read dark; the diffuse bounce gives back little of it
-  // (render_accuracy.md, "A radiance per voxel would not close the glossy paints' gap"), so the
+  // light on itself the glossy paints read dark; the diffuse bounce gives back little of it, so the
   // hit's diffuse lobe is left out. What the camera does not see (a recess's inner walls) reflects
   // nothing.
   bool specular_bounce = true;
@@ -149,14 +148,12 @@ struct RenderOptions {
   // exact_peak_shadows) for its share (detail::GroundLitFraction). Not by scaling every lighting
   // SG's share in those cones: wherever the SGs carry the lighting across the horizon, that takes
   // the sky's light too. On because Cycles' catcher is shadowed where the car sees it: with the
-  // unshadowed stand-in the glossy studio scene lands far off its reference
-  // (docs/benchmarks/render_accuracy.md).
+  // unshadowed stand-in the glossy studio scene lands far off its reference.
   bool ground_shadows_bounce = true;
   // That lit fraction read bilinearly from a grid of at most this many texels along each side
   // (detail::GroundLitMapLayoutFor), traced once per render at each texel, instead of traced from
   // every point where a car cone meets the ground (0). The per-point traces are a visible share of
-  // the shading time; the grid saves most of it and leaves the error against Cycles where it was
-  // (docs/benchmarks/render_accuracy.md, "The ground's lit fraction from a grid").
+  // the shading time; the grid saves most of it and leaves the error against Cycles where it was.
   int ground_lit_map_texels = 128;
   std::vector<MaterialOverride> materials;
   visibility::ConeSubsampleOptions cones;  // `rings` is taken from cone_rings
@@ -165,8 +162,7 @@ struct RenderOptions {
   // The overlap bins' overlap rule (lighting::OverlapBinOptions::cutoff, whose 1e-3 reproduces the
   // seed's Table 4.2): an SRBF lights a lobe where their product's integral is at least this
   // fraction of its value with the axes aligned. 1e-2 drops many SGs per car pixel, and shading
-  // time with them, while leaving the error against Cycles where it was
-  // (docs/benchmarks/render_lists/).
+  // time with them, while leaving the error against Cycles where it was.
   double overlap_cutoff = 1e-2;
   // Each lobe lit only by the lighting levels the depth rule gives its own λ
   // (lighting::OverlapBins::MaxLevel), not by every level of its bin's list, which goes as deep as
@@ -177,10 +173,10 @@ struct RenderOptions {
   // trace.start_offset_voxels along the cone): a conservative voxelization marks the surface's own
   // voxels and their neighbours, and a wide cone near the horizon would otherwise see them. 2 is
   // the smallest offset at which a Lambertian sphere under a constant sky keeps nearly all its
-  // light (docs/decisions.md, "Figures behind the defaults").
+  // light.
   double surface_offset_voxels = 2.0;
   // How BRDFs become lobes; the GPU pass and the CPU reference implement every mode. The default,
-  // chosen by `odvr bench render` (docs/benchmarks/render.md): the anisotropic split with the
+  // chosen by `odvr bench render`: the anisotropic split with the
   // cosine at each lobe's axis, which against Cycles takes the glossy paints' error down the most
   // for a moderate cost in shade time. The cosine as an SG is worse: M at a broad lobe's axis
   // carries 1/cos θ_i uncancelled, which the rough paints show.
@@ -200,7 +196,7 @@ struct RenderOptions {
   // (Blackman-Harris, 1.5 px wide), so panel edges, spokes and highlights narrower than a pixel are
   // averaged over it instead of point-sampled. Against the Cycles references k = 2 helps the glossy
   // paints most and the diffuse ones a little; k = 3 does no better, its filter reaching into the
-  // neighbours' samples (docs/benchmarks/render_accuracy.md).
+  // neighbours' samples.
   int supersample = 1;
   // With supersample > 1, each pixel's other samples are shaded only where it needs them
   // (render_flag.comp): where its samples see different surfaces (coverage, material, a normal
@@ -208,14 +204,14 @@ struct RenderOptions {
   // across it (|Y₋ + Y₊ − 2Y₀| along a row, column or diagonal) by more than this fraction of the
   // largest (the shadow ratio: by more than this); elsewhere that one sample stands for the pixel.
   // 0: every sample of every pixel. The default keeps every reference's error at the every-sample
-  // one's for much less shading (docs/benchmarks/render_accuracy.md); the Monte-Carlo baseline
+  // one's for much less shading; the Monte-Carlo baseline
   // always shades every sample.
   double supersample_contrast = 0.05;
   // 1 shades every pixel. 2 shades one pixel of each 2×2 block (its lower right), then every pixel
   // of the blocks that need it — by render_flag.comp's tests at supersample_contrast, and where a
   // neighbouring block's shaded pixel, which the fill reads, sees another surface — and fills the
   // other blocks' pixels midway between shaded ones (render_fill.comp): a smooth body costs a
-  // quarter, and the error against Cycles stays where it was (docs/benchmarks/render_accuracy.md).
+  // quarter, and the error against Cycles stays where it was.
   // Only without supersampling and the Monte-Carlo baseline; a block an odd width or height cuts is
   // shaded whole. RenderCounts' per-car-pixel means then count a filled pixel's work as 0.
   int shading_rate = 1;
@@ -244,7 +240,7 @@ enum class ShadeDevice { kGpu, kCpu };
 // kAutoShadeLanesMaxPixels pixels (blocks at shading rate 2) on a GPU, where one invocation per
 // pixel leaves most of it idle and a pixel's serial chain sets the time; 1 on larger passes (the
 // GPU full) and on a CPU rasterizer, whose threads are full at any size. The bound lies between
-// pass sizes measured to favour either (docs/benchmarks/h200.md).
+// pass sizes measured to favour either.
 inline constexpr long long kAutoShadeLanesMaxPixels = 1 << 16;
 int ShadeLanesFor(long long first_pass_pixels, bool software_renderer);
 

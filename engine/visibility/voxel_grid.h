@@ -75,7 +75,7 @@ struct ConeTraceOptions {
   // more, so a cone starting inside that band sees itself — most of all a grazing one, which
   // stays near its own surface for several voxels. Against the Cycles references every car and
   // shadow error falls as the offset grows to 4, for both shaders, so the contact shadows it skips
-  // are not missed there (docs/benchmarks/render_accuracy.md).
+  // are not missed there.
   double start_offset_voxels = 4.0;
   // The voxel of a sample's mip level as a fraction of the cone's diameter there (rounded to a
   // level); samples are one such voxel apart along the direction's dominant axis. At 0.5 the
@@ -88,7 +88,7 @@ struct ConeTraceOptions {
   // marks every voxel a surface touches, so partial coverage overstates the surface's. With a
   // wall's edge across the 7 cones of an SG lobe (cones_test) 0.5 is nearer the ray-cast truth than
   // 1; against the Cycles references 0.3 beat 0.5 on the cars and the shadows, and lower values
-  // made the shadows worse again (docs/benchmarks/render_accuracy.md).
+  // made the shadows worse again.
   double partial_opacity_exponent = 0.3;
   // Tracing stops here (metres from the origin); 0 = where the ray leaves the grid.
   double max_distance = 0;
