@@ -214,7 +214,10 @@ InterruptsDeferred::InterruptsDeferred() { g_deferring_sections.fetch_add(1); }
 InterruptsDeferred::~InterruptsDeferred() {
   if (g_deferring_sections.fetch_sub(1) != 1) return;
   const int sig = g_deferred_signal.exchange(0);
-  if (sig == 0) return;
+  if (sig != 0) EndByInterrupt(sig);
+}
+
+void EndByInterrupt(int sig) {
   RemoveTemporaryFiles();
   struct sigaction fallback {};
   fallback.sa_handler = SIG_DFL;

@@ -55,5 +55,8 @@ void ReleaseTemporaryFile(const std::filesystem::path& path);
 // Removes every registered temporary, files first, then folders (emptied by then): only
 // unlink and rmdir, async-signal-safe, for a SIGINT/SIGTERM handler.
 void RemoveTemporaryFiles();
+// What an interrupt does when it is not deferred: RemoveTemporaryFiles, then the signal's default
+// action, so the process ends by `sig`. Async-signal-safe.
+void EndByInterrupt(int sig);
 
 }  // namespace odvr

@@ -59,13 +59,7 @@ void OnFatalSignal(int sig) {
 // writes go, then the default action, so the process still ends by the signal. While an output
 // set is being swapped into place (InterruptsDeferred) the signal is held until the swap is done.
 void OnInterrupt(int sig) {
-  if (DeferInterrupt(sig)) return;
-  RemoveTemporaryFiles();
-  struct sigaction fallback {};
-  fallback.sa_handler = SIG_DFL;
-  sigemptyset(&fallback.sa_mask);
-  sigaction(sig, &fallback, nullptr);
-  ::raise(sig);
+  if (!DeferInterrupt(sig)) EndByInterrupt(sig);
 }
 
 }  // namespace

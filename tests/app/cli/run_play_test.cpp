@@ -466,14 +466,17 @@ TEST(RunPlayGL, ACarThatCoversNoPixelIsAWarningNamingTheModel) {
 // refused, naming the frame.
 TEST(RunPlayGL, AnOutlierPoseIsRefusedNamingItsFrame) {
   const fs::path dir = TempDir("odvr_play_outlier");
+  const auto play_with = [&](const fs::path& trajectory) {
+    return RunOdvr("play --headless --size 32x18 --frames 1 --out " + (dir / "out").string() + kSmall +
+                   (kDemo / "street.mp4").string() + " --car " + (kDemo / "car.glb").string() + " --trajectory " +
+                   trajectory.string());
+  };
   for (const auto& [value, needle] : std::vector<std::pair<double, std::string>>{{9.2e18, "frame 7: the camera is"},
                                                                                  {200, "frame 7: the camera jumps"}}) {
     auto trajectory = nlohmann::json::parse(std::ifstream(kDemo / "trajectory_gt.json"));
     trajectory["frames"][7]["world_from_rig"][1][3] = value;
     std::ofstream(dir / "outlier.json") << trajectory.dump();
-    const auto r = RunOdvr("play --headless --size 32x18 --frames 1 --out " + (dir / "out").string() + kSmall +
-                           (kDemo / "street.mp4").string() + " --car " + (kDemo / "car.glb").string() +
-                           " --trajectory " + (dir / "outlier.json").string());
+    const auto r = play_with(dir / "outlier.json");
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_NE(r.err.find((dir / "outlier.json").string() + ": " + needle), std::string::npos) << r.err;
   }
@@ -486,9 +489,7 @@ TEST(RunPlayGL, AnOutlierPoseIsRefusedNamingItsFrame) {
     trajectory["frames"][1]["world_from_rig"][1][3] = poses == 2 ? 9e5 : 200.0;
     trajectory["frames"][1].erase("world_yup_from_rig");
     std::ofstream(dir / "short.json") << trajectory.dump();
-    const auto r = RunOdvr("play --headless --size 32x18 --frames 1 --out " + (dir / "out").string() + kSmall +
-                           (kDemo / "street.mp4").string() + " --car " + (kDemo / "car.glb").string() +
-                           " --trajectory " + (dir / "short.json").string());
+    const auto r = play_with(dir / "short.json");
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_NE(r.err.find((dir / "short.json").string() + ": " + needle), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("faster than any vehicle"), std::string::npos) << r.err;
