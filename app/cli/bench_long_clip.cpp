@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -11,6 +10,7 @@
 #include <sstream>
 
 #include "app/cli/bench_common.h"
+#include "app/cli/bench_sfm.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/timing.h"
@@ -21,8 +21,6 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kClipFps = 25;
 constexpr long kTenMinutesAt30Fps = 18000;
-
-std::string Num(double v, int digits) { return std::isfinite(v) ? fmt::format("{:.{}f}", v, digits) : "n/a"; }
 
 nlohmann::json Rows(const Eigen::Matrix4d& m) {
   nlohmann::json rows = nlohmann::json::array();
