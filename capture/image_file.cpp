@@ -9,6 +9,8 @@
 #include <optional>
 #include <vector>
 
+#include "engine/image/image_io.h"
+
 namespace odvr::capture {
 namespace {
 
@@ -48,6 +50,8 @@ std::optional<long long> HeaderPixels(const std::filesystem::path& path) {
 bool JpegEndsEarly(const std::filesystem::path& path) { return JpegBytesEndEarly(ReadBytes(path)); }
 
 cv::Mat ReadImageFile(const std::filesystem::path& path, int flags, std::string* problem, long long max_pixels) {
+  // OpenImageIO (the header) and OpenCV (the decoder) both read an EXR through the OpenEXR library.
+  if (*problem = image::ExrHeaderProblem(path); !problem->empty()) return {};
   if (const auto pixels = HeaderPixels(path); pixels && *pixels > max_pixels) {
     *problem = "its header claims " + std::to_string(*pixels) + " pixels, more than the " + std::to_string(max_pixels) +
                " a frame may have";

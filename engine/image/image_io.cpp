@@ -11,7 +11,9 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <fstream>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -61,10 +63,60 @@ void CheckReaderMessages(OIIO::ImageInput* in, const std::string& name) {
   spdlog::warn("{}: {}", name, message);
 }
 
+namespace {
+
+// A NUL-terminated name of at most `max_length` characters; false when the file ends first or the
+// name is longer.
+bool ReadExrName(std::ifstream& in, std::size_t max_length, std::string* name) {
+  name->clear();
+  for (char c; in.get(c);) {
+    if (c == '\0') return true;
+    if (name->size() == max_length) return false;
+    name->push_back(c);
+  }
+  return false;
+}
+
+}  // namespace
+
+// The header layout (OpenEXR's file layout document): magic 76 2f 31 01, a version word whose bit
+// 10 allows names of 255 characters instead of 31 and whose bit 12 marks a multi-part file, then
+// attributes (name NUL, type NUL, int32 size, value) up to an empty name; a multi-part file has
+// one such header per part and an empty one after the last.
+std::string ExrHeaderProblem(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  unsigned char start[8];
+  if (!in.read(reinterpret_cast<char*>(start), sizeof start)) return {};
+  if (start[0] != 0x76 || start[1] != 0x2f || start[2] != 0x31 || start[3] != 0x01) return {};
+  std::error_code error;
+  const auto file_size = static_cast<long long>(std::filesystem::file_size(path, error));
+  if (error) return {};
+  const bool long_names = start[5] & 0x04, multi_part = start[5] & 0x10;
+  const std::size_t max_length = long_names ? 255 : 31;
+  for (std::string name, type;;) {
+    if (!ReadExrName(in, max_length, &name)) return "its OpenEXR header ends early or has an over-long name";
+    if (name.empty()) {  // the end of one part's header
+      if (!multi_part || in.peek() == 0 || in.peek() == std::ifstream::traits_type::eof()) return {};
+      continue;
+    }
+    std::uint8_t size_bytes[4];
+    if (!ReadExrName(in, max_length, &type) || !in.read(reinterpret_cast<char*>(size_bytes), sizeof size_bytes))
+      return "its OpenEXR header ends early in attribute '" + name + "'";
+    const std::int32_t size = static_cast<std::int32_t>(size_bytes[0] | size_bytes[1] << 8 | size_bytes[2] << 16 |
+                                                        static_cast<std::uint32_t>(size_bytes[3]) << 24);
+    const long long left = file_size - static_cast<long long>(in.tellg());
+    if (size < 0 || size > left)
+      return "its OpenEXR header's attribute '" + name + "' claims " + std::to_string(size) + " bytes, but " +
+             std::to_string(left) + " are left in the file";
+    in.seekg(size, std::ios::cur);
+  }
+}
+
 sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOptions& options, LoadReport* report) {
   const std::string name = path.string();
   if (!std::filesystem::exists(path)) throw Error(name, "no such file");
   if (std::filesystem::is_directory(path)) throw Error(name, "is a directory, not an image");
+  if (const std::string problem = ExrHeaderProblem(path); !problem.empty()) throw Error(name, problem);
   auto in = OIIO::ImageInput::open(name);
   if (!in) {
     std::string why = OIIO::geterror();
@@ -158,6 +210,7 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
 std::vector<float> LoadAlpha(const std::filesystem::path& path, int* width, int* height) {
   const std::string name = path.string();
   if (!std::filesystem::exists(path)) throw Error(name, "no such file");
+  if (const std::string problem = ExrHeaderProblem(path); !problem.empty()) throw Error(name, problem);
   auto in = OIIO::ImageInput::open(name);
   if (!in) throw Error(name, "cannot read: not an image OpenImageIO can read");
   const OIIO::ImageSpec& spec = in->spec();

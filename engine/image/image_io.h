@@ -46,6 +46,12 @@ struct LoadReport {
 sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOptions& options = {},
                                 LoadReport* report = nullptr);
 
+// Why an OpenEXR file's header cannot be read safely; empty when it can, or when the file is not
+// OpenEXR. The OpenEXR library allocates and clears the size an attribute declares before it reads
+// the value, so a header that claims a 2 GB string in a 3 kB file takes seconds and gigabytes to
+// be refused; here every attribute must fit in the bytes that follow it. Reads only the header.
+std::string ExrHeaderProblem(const std::filesystem::path& path);
+
 // Replaces NaN, ±Inf and negative values by 0; returns {nan_or_inf, negative} counts (pixels).
 std::pair<long, long> SanitizePixels(sphere::EquirectImage* image);
 

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -150,6 +151,42 @@ TEST_F(ImageIo, ATooLargeHeaderIsRefusedBeforeAPixelIsRead) {
   SaveImage(dir_ / "wide.exr", sphere::EquirectImage(70000, 2, 0.5f));
   EXPECT_NE(ErrorOf(dir_ / "wide.exr").find("is 70000x2: wider than the 65536 pixels"), std::string::npos)
       << ErrorOf(dir_ / "wide.exr");
+}
+
+// The fuzzer's timeout: an OpenEXR header whose first attribute, a string, claims `size` bytes.
+// OpenEXR allocated and cleared 2 GB for it before finding the file 3 kB long.
+void InsertExrString(const fs::path& path, std::int32_t size, const std::string& value) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string attribute("owner\0string\0", 13);
+  for (int k = 0; k < 4; ++k)
+    attribute.push_back(static_cast<char>((static_cast<std::uint32_t>(size) >> (8 * k)) & 0xff));
+  bytes.insert(8, attribute + value);
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+}
+
+TEST_F(ImageIo, AnExrAttributeLongerThanItsFileIsRefusedBeforeOpenExrAllocatesIt) {
+  SaveImage(dir_ / "ok.exr", sphere::EquirectImage(8, 4, 0.5f));
+  InsertExrString(dir_ / "ok.exr", 3, "abc");  // a well-formed attribute passes the check
+  EXPECT_EQ(ExrHeaderProblem(dir_ / "ok.exr"), "");
+
+  SaveImage(dir_ / "bad.exr", sphere::EquirectImage(8, 4, 0.5f));
+  InsertExrString(dir_ / "bad.exr", 0x7ffffff0, "abc");
+  const std::string expected = "bad.exr: its OpenEXR header's attribute 'owner' claims 2147483632 bytes, but ";
+  EXPECT_NE(ErrorOf(dir_ / "bad.exr").find(expected), std::string::npos) << ErrorOf(dir_ / "bad.exr");
+  int width = 0, height = 0;
+  EXPECT_THROW(LoadAlpha(dir_ / "bad.exr", &width, &height), Error);
+
+  SaveImage(dir_ / "negative.exr", sphere::EquirectImage(8, 4, 0.5f));
+  InsertExrString(dir_ / "negative.exr", -1, "");
+  EXPECT_NE(ExrHeaderProblem(dir_ / "negative.exr").find("claims -1 bytes"), std::string::npos);
+  // Cut inside the header's first attribute name.
+  SaveImage(dir_ / "cut.exr", sphere::EquirectImage(8, 4, 0.5f));
+  std::filesystem::resize_file(dir_ / "cut.exr", 12);
+  EXPECT_NE(ExrHeaderProblem(dir_ / "cut.exr").find("ends early"), std::string::npos)
+      << ExrHeaderProblem(dir_ / "cut.exr");
+  std::ofstream(dir_ / "text.exr") << "not an exr";
+  EXPECT_EQ(ExrHeaderProblem(dir_ / "text.exr"), "");  // not OpenEXR: the readers say what it is
 }
 
 TEST_F(ImageIo, ATruncatedJpegIsRefusedNotFilledWithGrey) {
