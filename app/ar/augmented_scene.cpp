@@ -11,8 +11,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "app/ar/cube_face_composite.h"
 #include "app/ar/frame_decoder.h"
 #include "capture/source.h"
+#include "core/constants.h"
 #include "core/error.h"
 #include "core/srgb.h"
 #include "core/timing.h"
@@ -147,13 +149,15 @@ struct AugmentedScene::Impl {
   glm::dvec3 car_centre{0};  // bounding-box middle in the car frame
   LightWeightSmoother smoother;
 
-  int gpu_frame = -1;  // which view frame the renderer's background holds (the last shown)
+  double car_radius = 0;  // half the bounding box's diagonal
+  int gpu_frame = -1;     // which view frame the renderer's background holds (the last shown)
+  int linear_frame = -1;  // which view frame `linear` holds
+  sphere::EquirectImage linear;
   // Cruise: the video's clock (seconds from the trajectory's first frame), the car's lead over
   // the camera along the path, the speed of the last step; driving: held at the street's end.
   double cruise_t = 0, cruise_lead_m = 0, cruise_speed_mps = 0;
   int cruise_view_k = 0;  // the trajectory frame nearest the video's clock
   bool cruising = false, at_stretch_end = false;
-  sphere::EquirectImage last_background;
 
   // Linear float RGB of an 8-bit sRGB image.
   static cv::Mat Linear(const cv::Mat& rgb8) {
@@ -262,8 +266,13 @@ AugmentedScene::AugmentedScene(AugmentedOptions options)
     WarnOfAStandingCamera(options_.trajectory, im.positions.size(), picker_->path_length(), car_start_m);
 
   im.builder = std::make_unique<lighting::LightingBuilder>(options_.Lighting());
-  im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), options_.Render());
+  render::RenderOptions render_options = options_.Render();
+  // RenderEquirect composites the car's layers into the recorded panorama itself.
+  if (options_.equirect_output) render_options.read_layers = render_options.read_composite = true;
+  im.renderer = std::make_unique<render::TripleProductRenderer>(im.model, glm::dmat4(1.0), render_options);
   im.car_centre = BoundsCentre(*im.renderer);
+  for (const auto& v : im.renderer->world_triangles())
+    im.car_radius = std::max(im.car_radius, glm::distance(glm::dvec3(v), im.car_centre));
 
   car_ = std::make_unique<CarController>(GroundPlane{{0, 1, 0}, 0});
   PlaceCar(car_start_m, options_.lateral_m);
@@ -427,24 +436,26 @@ const lighting::SgLighting& AugmentedScene::FrameLighting(int frame) {
   return im.lights.emplace(frame, std::move(light)).first->second;
 }
 
-AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView& view, double dt_s) {
-  if (width < 1 || height < 1) throw Error("augmented view", "size must be at least 1x1");
+// A file that turned out shorter than announced: the poses past its real end are dropped, so that
+// the picker stops choosing frames that are not there (the car may still drive on).
+void AugmentedScene::DropPosesPastTheEnd() {
   Impl& im = *impl_;
-  AugmentedFrame out;
-  const auto t_total = Clock::now();
-  // A file that turned out shorter than announced: drop the poses past its real end, so that
-  // the picker stops choosing frames that are not there (the car may still drive on).
   const long available = im.decoder->available_frames();
-  if (available < im.announced_frames && frame_index_.back() >= available) {
-    std::size_t keep = 0;
-    while (keep < frame_index_.size() && frame_index_[keep] < available) ++keep;
-    if (keep == 0) throw Error(options_.video, "ends before the first frame of the trajectory");
-    frame_index_.resize(keep);
-    im.positions.resize(keep);
-    im.world_from_pano.resize(keep);
-    picker_ = std::make_unique<FramePicker>(im.positions, options_.picker);
-    im.smoother = LightWeightSmoother(options_.light_smoothing_s);
-  }
+  if (available >= im.announced_frames || frame_index_.back() < available) return;
+  std::size_t keep = 0;
+  while (keep < frame_index_.size() && frame_index_[keep] < available) ++keep;
+  if (keep == 0) throw Error(options_.video, "ends before the first frame of the trajectory");
+  frame_index_.resize(keep);
+  im.positions.resize(keep);
+  im.world_from_pano.resize(keep);
+  picker_ = std::make_unique<FramePicker>(im.positions, options_.picker);
+  im.smoother = LightWeightSmoother(options_.light_smoothing_s);
+}
+
+AugmentedScene::ViewSetup AugmentedScene::PrepareFrame(double dt_s, AugmentedFrame* frame) {
+  Impl& im = *impl_;
+  AugmentedFrame& out = *frame;
+  DropPosesPastTheEnd();
   const CarState& car = car_->state();
   out.car_position = car.position;
 
@@ -536,24 +547,51 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
     out.light_peaks = static_cast<int>(r->second.peak_detection.peaks.size());
   }
 
-  // The viewer: at the view frame's rig centre, looking at the car, turned by the user.
-  t0 = Clock::now();
+  // The view frame: the one chosen, else (undecodable) the last picture shown and its pose, else
+  // any decoded one.
   int view_frame = frame_index_[static_cast<std::size_t>(view_k)];
   if (!ok[view_frame] && im.gpu_frame >= 0) {
-    view_frame = im.gpu_frame;  // undecodable: keep the last picture and its pose
+    view_frame = im.gpu_frame;
     view_k = static_cast<int>(std::find(frame_index_.begin(), frame_index_.end(), view_frame) - frame_index_.begin());
   }
   if (!ok[view_frame] && im.gpu_frame < 0) {
-    for (const auto& [frame, good] : ok)
-      if (good) view_frame = frame;
+    for (const auto& [f, good] : ok)
+      if (good) view_frame = f;
     view_k = static_cast<int>(std::find(frame_index_.begin(), frame_index_.end(), view_frame) - frame_index_.begin());
   }
   if (view_k >= static_cast<int>(frame_index_.size())) throw Error(options_.video, "no frame to show can be decoded");
   out.view_frame = view_frame;
-  const glm::dvec3 eye = im.positions[static_cast<std::size_t>(view_k)];
+  out.at_stretch_end = im.at_stretch_end;
+  return {view_k, im.positions[static_cast<std::size_t>(view_k)], world_from_car};
+}
+
+// The view frame's panorama as linear RGB, converted once per view frame.
+const sphere::EquirectImage& AugmentedScene::LinearPanorama(int frame) {
+  Impl& im = *impl_;
+  if (im.linear_frame != frame && im.panos.count(frame)) {
+    const cv::Mat lin = Impl::Linear(im.panos[frame].rgb8);
+    im.linear = sphere::EquirectImage(lin.cols, lin.rows);
+    std::memcpy(im.linear.rgb.data(), lin.ptr<float>(), im.linear.rgb.size() * sizeof(float));
+    im.linear_frame = frame;
+  }
+  return im.linear;
+}
+
+AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView& view, double dt_s) {
+  if (width < 1 || height < 1) throw Error("augmented view", "size must be at least 1x1");
+  Impl& im = *impl_;
+  AugmentedFrame out;
+  const auto t_total = Clock::now();
+  const ViewSetup setup = PrepareFrame(dt_s, &out);
+  const glm::dmat4& world_from_car = setup.world_from_car;
+  const glm::dmat3 car_from_world = glm::transpose(glm::dmat3(world_from_car));
+
+  // The viewer: at the view frame's rig centre, looking at the car, turned by the user.
+  auto t0 = Clock::now();
+  const glm::dvec3 eye = setup.eye;
   const glm::dvec3 car_centre_world = glm::dvec3(world_from_car * glm::dvec4(im.car_centre, 1));
   glm::dvec3 d = car_centre_world - eye;
-  if (glm::length(d) < 1e-6) d = car.forward;
+  if (glm::length(d) < 1e-6) d = car_->state().forward;
   d = glm::normalize(d);
   const double pi = kPi;
   const double az = std::atan2(d.z, d.x) + view.yaw_deg * pi / 180;  // +z is right of +x seen from above
@@ -574,16 +612,14 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
   // Background: the view frame's panorama through the camera, sampled by the renderer's
   // composite on the GPU (uploaded once per view frame, turned each frame), the car (unless
   // hidden) and its shadow over it.
-  if (im.gpu_frame != view_frame && im.panos.count(view_frame)) {
-    const cv::Mat lin = Impl::Linear(im.panos[view_frame].rgb8);
-    sphere::EquirectImage pano(lin.cols, lin.rows);
-    std::memcpy(pano.rgb.data(), lin.ptr<float>(), pano.rgb.size() * sizeof(float));
-    im.renderer->SetBackgroundEquirect(pano);
-    im.gpu_frame = view_frame;
+  if (im.gpu_frame != out.view_frame && im.panos.count(out.view_frame)) {
+    im.renderer->SetBackgroundEquirect(LinearPanorama(out.view_frame));
+    im.gpu_frame = out.view_frame;
   }
   const glm::dmat3 pano_from_car =
-      glm::transpose(im.world_from_pano[static_cast<std::size_t>(view_k)]) * glm::dmat3(world_from_car);
+      glm::transpose(im.world_from_pano[static_cast<std::size_t>(setup.view_k)]) * glm::dmat3(world_from_car);
   im.renderer->SetBackgroundRotation(glm::transpose(pano_from_car));
+  out.pano_from_car = pano_from_car;
   double composite_ms = MsSince(t0);
   t0 = Clock::now();
   render::RenderResult r = im.renderer->Render(camera, render::ShadeDevice::kGpu, view.draw_car);
@@ -593,8 +629,66 @@ AugmentedFrame AugmentedScene::Render(int width, int height, const AugmentedView
   composite_ms += r.ms.composite;
   out.image = std::move(r.composite);
   out.car_pixels = r.counts.car_pixels;
-  out.at_stretch_end = im.at_stretch_end;
   t0 = Clock::now();
+  if (options_.exposure != 1.0)
+    for (float& v : out.image.rgb) v *= static_cast<float>(options_.exposure);
+  out.ms.composite = composite_ms + MsSince(t0);
+  out.ms.total = MsSince(t_total);
+  return out;
+}
+
+AugmentedFrame AugmentedScene::RenderEquirect(int width, double dt_s) {
+  if (!options_.equirect_output) throw Error("augmented view", "a 360° frame needs AugmentedOptions::equirect_output");
+  Impl& im = *impl_;
+  AugmentedFrame out;
+  const auto t_total = Clock::now();
+  const ViewSetup setup = PrepareFrame(dt_s, &out);
+  auto t0 = Clock::now();
+  const sphere::EquirectImage& recorded = LinearPanorama(out.view_frame);
+  if (recorded.empty()) throw Error(options_.video, "no frame to show can be decoded");
+  if (width <= 0) width = recorded.width;
+  if (width < 2 || width % 2)
+    throw Error("augmented view", "a 360° frame's width must be even, got " + std::to_string(width));
+  out.image = sphere::EquirectImage(width, width / 2);
+  if (width == recorded.width) {
+    out.image.rgb = recorded.rgb;
+  } else {
+    const cv::Mat from(recorded.height, recorded.width, CV_32FC3, const_cast<float*>(recorded.rgb.data()));
+    cv::Mat to(out.image.height, out.image.width, CV_32FC3, out.image.rgb.data());
+    cv::resize(from, to, to.size(), 0, 0, width < recorded.width ? cv::INTER_AREA : cv::INTER_LINEAR);
+  }
+  double composite_ms = MsSince(t0);
+
+  // The car's frame seen from the view frame's rig centre, and the panorama's frame in it.
+  const glm::dmat3 pano_from_car =
+      glm::transpose(im.world_from_pano[static_cast<std::size_t>(setup.view_k)]) * glm::dmat3(setup.world_from_car);
+  const glm::dmat3 car_from_pano = glm::transpose(pano_from_car);
+  out.pano_from_car = pano_from_car;
+  const glm::dvec3 eye_car = glm::dvec3(glm::inverse(setup.world_from_car) * glm::dvec4(setup.eye, 1));
+  // A face of a quarter of the panorama's width has its pixels' size at the face's centre.
+  const int side = std::max(16, width / 4) + 2 * kCubeFaceMargin;
+  CubeFaces faces;
+  std::vector<int> queue = CubeFacesMeetingSphere(pano_from_car * (im.car_centre - eye_car), im.car_radius);
+  std::vector<bool> queued(6, false);
+  for (const int f : queue) queued[static_cast<std::size_t>(f)] = true;
+  while (!queue.empty()) {
+    const int face = queue.back();
+    queue.pop_back();
+    const render::PinholeCamera camera = CubeFaceCamera(face, side, eye_car, car_from_pano);
+    t0 = Clock::now();
+    const render::RenderResult r = im.renderer->Render(camera, render::ShadeDevice::kGpu, true);
+    out.ms.render += std::max(0.0, MsSince(t0) - r.ms.composite - r.ms.readback);
+    out.ms.readback += r.ms.readback;
+    faces[static_cast<std::size_t>(face)] = TakeCubeFaceLayers(camera, r);
+    for (const int next : CubeFacesBeyondBorder(face, *faces[static_cast<std::size_t>(face)], pano_from_car))
+      if (!queued[static_cast<std::size_t>(next)]) queued[static_cast<std::size_t>(next)] = true, queue.push_back(next);
+  }
+  for (const auto& f : faces) out.cube_faces_rendered += f.has_value();
+  t0 = Clock::now();
+  out.car_pixels = CompositeCubeFaces(faces, car_from_pano, &out.image);
+  const glm::dvec2 centre = sphere::EquirectPixel(pano_from_car * (im.car_centre - eye_car), width, width / 2);
+  out.car_pixel = centre;
+  out.car_in_front = true;  // a panorama shows every direction
   if (options_.exposure != 1.0)
     for (float& v : out.image.rgb) v *= static_cast<float>(options_.exposure);
   out.ms.composite = composite_ms + MsSince(t0);

@@ -15,6 +15,7 @@
 // The renderer works in the car's frame (the model at the identity, ground y = 0 = the road):
 // the car then never needs re-uploading, and the camera and the light are moved instead.
 #include <glm/mat3x3.hpp>
+#include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <map>
 #include <memory>
@@ -59,7 +60,9 @@ struct AugmentedOptions : CarRendering {
   double vfov_deg = 70;
   double exposure = 1.0;
   std::size_t frame_cache = 48;  // decoded panoramas kept (8-bit)
-  void Check() const;            // throws odvr::UsageError
+  // RenderEquirect is used: the renderer reads its layers back (the car's, the shadow's).
+  bool equirect_output = false;
+  void Check() const;  // throws odvr::UsageError
 };
 
 struct AugmentedTimings {  // milliseconds of one shown frame
@@ -83,6 +86,10 @@ struct AugmentedFrame {
   // SRBFs, the residue left after each) and the peaks taken out first.
   std::vector<lighting::LevelReport> light_levels;
   int light_peaks = 0;
+  int cube_faces_rendered = 0;  // RenderEquirect: the faces the car or its shadow reached
+  // The view frame's panorama frame from the renderer's (the car's): a ray of last_camera() turned
+  // by it is a direction of the panorama (engine/sphere/equirect.h).
+  glm::dmat3 pano_from_car{1.0};
 };
 
 // Viewer offsets on top of looking at the car.
@@ -114,6 +121,11 @@ class AugmentedScene {
   // Moves the car to a world position (projected on the road), keeping its heading.
   void TeleportCar(const glm::dvec3& world_position);
   AugmentedFrame Render(int width, int height, const AugmentedView& view = {}, double dt_s = 0.04);
+  // The augmented 360° frame (needs AugmentedOptions::equirect_output): the view frame's panorama
+  // as the video holds it (its own orientation), `width` × width/2 (≤ 0: the video's width), with
+  // the car and its shadow composited into it (app/ar/cube_face_composite.h). The lighting and the
+  // frames chosen are Render's.
+  AugmentedFrame RenderEquirect(int width, double dt_s = 0.04);
   // The car's material and light toggles, from the next Render on. Throws odvr::UsageError.
   void SetLook(const CarLook& look);
   const CarLook& look() const { return look_; }
@@ -132,6 +144,16 @@ class AugmentedScene {
   const gl::Texture& composite() const;
 
  private:
+  // What Render and RenderEquirect share: the frames decoded, the car lit, the view frame chosen.
+  struct ViewSetup {
+    int view_k = 0;                // index into frames()
+    glm::dvec3 eye{0};             // the view frame's rig centre (world)
+    glm::dmat4 world_from_car{1};  // the car's pose
+  };
+  ViewSetup PrepareFrame(double dt_s, AugmentedFrame* out);
+  void DropPosesPastTheEnd();
+  const sphere::EquirectImage& LinearPanorama(int frame);
+
   struct Impl;
   AugmentedOptions options_;
   std::unique_ptr<Impl> impl_;

@@ -31,7 +31,8 @@ struct ExportCommand {
   AugmentedOptions scene;
   std::string path;  // the drive script; empty: the car cruises ahead of the camera
   std::string out;
-  std::string size = "1280x720";
+  std::string size;  // "" : 1280x720 flat, the video's frame size as a panorama
+  std::string projection = "flat";
   int frames = -1;    // -1: the drive path's duration
   double fps = -1;    // -1: the video's
   std::string codec;  // capture::VideoWriterOptions::codec: "" by the extension
@@ -70,10 +71,15 @@ std::pair<int, int> ParseExportSize(const std::string& text) {
 }
 
 int RunExport(ExportCommand& c) {
-  const auto [width, height] = ParseExportSize(c.size);
+  const bool equirect = c.projection == "equirect";
+  if (equirect && !c.view.empty())
+    throw UsageError("--view", "looks one way; --projection equirect writes every direction");
+  auto [width, height] = ParseExportSize(c.size.empty() ? (equirect ? "16x16" : "1280x720") : c.size);
+  if (equirect && !c.size.empty() && width != 2 * height)
+    throw UsageError("--size", "a 360° clip is twice as wide as high, got " + c.size);
+  if (equirect && c.size.empty()) width = height = 0;  // the video's, known once a frame is decoded
   capture::VideoWriterOptions video;
-  video.width = width;
-  video.height = height;
+  video.spherical_equirect = equirect;
   video.codec = c.codec.empty() ? capture::DefaultCodecFor(c.out) : c.codec;
   video.crf = c.crf;
   // --path is a drive script, or a file holding one.
@@ -90,6 +96,7 @@ int RunExport(ExportCommand& c) {
   const AugmentedView view = ParseExportView(c.view);
 
   gl::HeadlessContext context;
+  c.scene.equirect_output = equirect;
   AugmentedScene scene(c.scene);
   const double fps = c.fps > 0 ? c.fps : (scene.fps() > 0 ? scene.fps() : 25.0);
   video.fps = fps;
@@ -99,7 +106,6 @@ int RunExport(ExportCommand& c) {
     video.audio_from = c.scene.video;
     video.audio_start_s = static_cast<double>(scene.frames().front()) / scene.fps();
   }
-  video.Check();
   const double dt = 1.0 / fps;
   // By default the drive's duration, or without one the trajectory's stretch of the video.
   const int frames = c.frames > 0     ? c.frames
@@ -107,6 +113,25 @@ int RunExport(ExportCommand& c) {
                                       : std::max(1, static_cast<int>(std::ceil(DriveDuration(script) / dt - 1e-9)) + 1);
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
+  // The first frame is rendered before the writer opens: a 360° clip takes its size from it.
+  std::vector<double> face_counts;
+  const auto render = [&](int i) {
+    if (i > 0 && script.empty()) scene.Cruise(dt);
+    if (i > 0 && !script.empty()) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
+    AugmentedFrame f =
+        equirect ? scene.RenderEquirect(width, i > 0 ? dt : 0) : scene.Render(width, height, view, i > 0 ? dt : 0);
+    if (equirect) face_counts.push_back(f.cube_faces_rendered);
+    return f;
+  };
+  AugmentedFrame first = render(0);
+  width = first.image.width;
+  height = first.image.height;
+  if (equirect && (width > 8192 || width % 2 || height % 2))
+    throw Error(c.scene.video, "a 360° clip of its frame size (" + std::to_string(width) + "x" +
+                                   std::to_string(height) + ") cannot be written: give --size");
+  video.width = width;
+  video.height = height;
+  video.Check();
   std::vector<std::uint8_t> bgr(static_cast<std::size_t>(width) * height * 3);
   std::string encoder, audio;
   int frames_with_car = 0;
@@ -122,9 +147,7 @@ int RunExport(ExportCommand& c) {
       spdlog::info("{}: silent: {} has no sound", c.out, video.audio_from);
     }
     for (int i = 0; i < frames; ++i) {
-      if (i > 0 && script.empty()) scene.Cruise(dt);
-      if (i > 0 && !script.empty()) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
-      const AugmentedFrame f = scene.Render(width, height, view, i > 0 ? dt : 0);
+      const AugmentedFrame f = i == 0 ? std::move(first) : render(i);
       frames_with_car += f.car_pixels > 0;
       for (std::size_t p = 0; p < f.image.pixel_count(); ++p)
         for (int ch = 0; ch < 3; ++ch) {
@@ -148,18 +171,29 @@ int RunExport(ExportCommand& c) {
         "{}: the car ({}) covers no pixel in any of the {} frames: it lies outside the view (see --view and "
         "--car-start), or is too small or too far off to see",
         c.out, c.scene.car, frames);
+  double faces_mean = 0;
+  for (const double n : face_counts) faces_mean += n / static_cast<double>(face_counts.size());
   if (c.json) {
-    std::cout << nlohmann::json{{"output", c.out},         {"frames", frames},
-                                {"size", {width, height}}, {"fps", fps},
-                                {"codec", encoder},        {"crf", c.crf},
-                                {"seconds", elapsed},      {"cruise", script.empty()},
-                                {"audio", audio},          {"frames_with_car", frames_with_car}}
-                     .dump(2)
-              << "\n";
+    nlohmann::json report{{"output", c.out},
+                          {"frames", frames},
+                          {"size", {width, height}},
+                          {"fps", fps},
+                          {"codec", encoder},
+                          {"crf", c.crf},
+                          {"seconds", elapsed},
+                          {"cruise", script.empty()},
+                          {"audio", audio},
+                          {"frames_with_car", frames_with_car},
+                          {"projection", c.projection}};
+    if (equirect) report["cube_faces_per_frame"] = faces_mean;
+    std::cout << report.dump(2) << "\n";
   } else {
     std::cout << c.out << ": " << frames << " frames " << width << "x" << height << " at " << fps << " fps (" << encoder
               << ", crf " << c.crf << (audio.empty() ? ", silent" : ", " + audio + " audio copied") << ") in "
-              << elapsed << " s\n";
+              << elapsed << " s";
+    if (equirect)
+      std::cout << "; 360° with spherical metadata, the car rendered on " << faces_mean << " cube faces a frame";
+    std::cout << "\n";
   }
   return 0;
 }
@@ -191,7 +225,14 @@ CommandFn AddExport(CLI::App* sub) {
                   "Quality: x264/x265's constant rate factor, 0 (lossless) to 51; 18-23 look like the source")
       ->check(CLI::Range(0, 51))
       ->capture_default_str();
-  sub->add_option("--size", c->size, "WIDTHxHEIGHT (even)")->capture_default_str();
+  sub->add_option("--projection", c->projection,
+                  "flat: a camera's view of the car (--view, --fov); equirect: the augmented 360° video itself, "
+                  "every direction, with spherical metadata so that 360° players and sites show it as such")
+      ->check(CLI::IsMember({"flat", "equirect"}))
+      ->capture_default_str();
+  sub->add_option("--size", c->size,
+                  "WIDTHxHEIGHT, even (default: 1280x720; with --projection equirect the video's frame size, "
+                  "one eye of a stereo video)");
   // Checked where given: -1 stands for "not given" in ExportCommand.
   sub->add_option("--frames", c->frames, "Frames to write (default: the path's duration)")->check(CLI::PositiveNumber);
   sub->add_option("--fps", c->fps, "Frame rate (default: the video's)")

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,7 @@
 
 #include "core/error.h"
 #include "engine/gl/context.h"
+#include "engine/sphere/equirect.h"
 
 namespace odvr::app {
 namespace {
@@ -175,6 +177,76 @@ void WriteTrajectory(const fs::path& out, int first, int last, double shift_x = 
   }
   j["frames"] = frames;
   std::ofstream(out) << j.dump();
+}
+
+// Bilinear sample of a panorama at continuous pixel coordinates (centres at +0.5), wrapping in x.
+glm::vec3 SamplePanorama(const sphere::EquirectImage& pano, glm::dvec2 at) {
+  const double u = at.x - 0.5, v = std::clamp(at.y - 0.5, 0.0, pano.height - 1.0);
+  const int x0 = static_cast<int>(std::floor(u)), y0 = std::min(static_cast<int>(v), pano.height - 2);
+  const float fx = static_cast<float>(u - x0), fy = static_cast<float>(v - y0);
+  const auto px = [&](int x, int y) {
+    const float* p = pano.at(((x % pano.width) + pano.width) % pano.width, y);
+    return glm::vec3(p[0], p[1], p[2]);
+  };
+  return glm::mix(glm::mix(px(x0, y0), px(x0 + 1, y0), fx), glm::mix(px(x0, y0 + 1), px(x0 + 1, y0 + 1), fx), fy);
+}
+
+// The augmented 360° frame seen through the flat view's camera is the flat view: the car, its
+// shadow and the street where they are not, within resampling. The car and its shadow are rendered
+// on the cube faces they reach: with the broad light's cones (cone_rings 1) the car's soft shadow
+// reaches past the face ahead onto the faces below and beside, which the second view looks into.
+TEST(AugmentedSceneGL, The360FrameSeenThroughTheFlatCameraIsTheFlatFrame) {
+  gl::HeadlessContext context;
+  AugmentedOptions options = DemoOptions();
+  options.cone_rings = 1;
+  options.equirect_output = true;
+  AugmentedScene scene(options);
+  const AugmentedFrame pano = scene.RenderEquirect(1024, 0);
+  ASSERT_EQ(pano.image.width, 1024);
+  ASSERT_EQ(pano.image.height, 512);
+  EXPECT_GE(pano.cube_faces_rendered, 2);
+  EXPECT_GT(pano.car_pixels, 500);
+  for (const auto& [yaw, pitch] : {std::pair{0.0, -25.0}, std::pair{70.0, -70.0}}) {
+    AugmentedView view, bare;
+    view.yaw_deg = bare.yaw_deg = yaw;
+    view.pitch_deg = bare.pitch_deg = pitch;
+    view.vfov_deg = bare.vfov_deg = 100;
+    bare.draw_car = false;
+    const AugmentedFrame street = scene.Render(256, 144, bare, 0);
+    const AugmentedFrame flat = scene.Render(256, 144, view, 0);
+    EXPECT_EQ(pano.view_frame, flat.view_frame);
+    // Mean |difference| over the view, over the pixels the car or its shadow changes there, and over
+    // those its shadow alone darkens (each channel by about the same ratio): a face left out where
+    // the shadow reaches shows there.
+    double diff = 0, changed_diff = 0, shadow_diff = 0;
+    int changed = 0, shadowed = 0;
+    const render::PinholeCamera& camera = scene.last_camera();
+    for (int y = 0; y < camera.height; ++y)
+      for (int x = 0; x < camera.width; ++x) {
+        const glm::dvec2 at = sphere::EquirectPixel(pano.pano_from_car * camera.Ray(x + 0.5, y + 0.5), 1024, 512);
+        const glm::vec3 seen = SamplePanorama(pano.image, at);
+        const float *f = flat.image.at(x, y), *b = street.image.at(x, y);
+        const double e = (std::abs(seen.x - f[0]) + std::abs(seen.y - f[1]) + std::abs(seen.z - f[2])) / 3;
+        diff += e;
+        if (std::abs(f[0] - b[0]) + std::abs(f[1] - b[1]) + std::abs(f[2] - b[2]) > 0.01) changed_diff += e, ++changed;
+        const float ratio = f[1] / std::max(b[1], 1e-4f);
+        if (ratio < 0.99f && std::abs(f[0] / std::max(b[0], 1e-4f) - ratio) < 0.02f &&
+            std::abs(f[2] / std::max(b[2], 1e-4f) - ratio) < 0.02f)
+          shadow_diff += e, ++shadowed;
+      }
+    diff /= camera.width * camera.height;
+    changed_diff /= std::max(changed, 1);
+    shadow_diff /= std::max(shadowed, 1);
+    std::printf(
+        "view yaw %.0f pitch %.0f: mean |360 frame - flat frame| %.5f, %.5f over the %d pixels the car or its "
+        "shadow changes, %.5f over the %d its shadow darkens (linear); %d cube faces\n",
+        yaw, pitch, diff, changed_diff, changed, shadow_diff, shadowed, pano.cube_faces_rendered);
+    EXPECT_GT(changed, 300);
+    EXPECT_GT(shadowed, 300);
+    EXPECT_LT(diff, 0.01);
+    EXPECT_LT(changed_diff, 0.03);
+    EXPECT_LT(shadow_diff, 0.001);
+  }
 }
 
 TEST(AugmentedSceneGL, TrajectoryShorterOrLongerThanTheVideo) {
