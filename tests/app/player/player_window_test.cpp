@@ -8,85 +8,24 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "core/constants.h"
 #include "tests/app/run_odvr.h"
+#include "tests/app/scripted_window.h"
 
 namespace odvr::app {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-using odvr::testing::ReadText;
+using odvr::testing::MissingWindowTool;
 using odvr::testing::ScratchDir;
-
-std::string MissingTool() {
-  for (const char* tool : {"xvfb-run", "xdotool"})
-    if (std::system(("command -v " + std::string(tool) + " >/dev/null 2>&1").c_str()) != 0) return tool;
-  return "";
-}
-
-// One player under its own Xvfb server. Shot(input) sends `input` (xdotool commands; $W is the
-// player's window) followed by F12; Run() returns the trace lines: [0] "ready", then one per Shot.
-class ScriptedWindow {
- public:
-  ScriptedWindow(fs::path dir, std::string play_args) : dir_(std::move(dir)), args_(std::move(play_args)) {}
-  void Shot(const std::string& input) { steps_.push_back(input); }
-
-  std::vector<json> Run() {
-    std::ostringstream s;
-    s << "set -u\ncd '" << dir_.string()
-      << "'\n"
-      // Leak checking off for the player only, as in RunPlayGL: GLX driver allocations.
-      << "ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 " << ODVR_BINARY << " play " << args_
-      << " --trace --screenshot '" << (dir_ / "final.png").string() << "' >trace.jsonl 2>player.log &\n"
-      << "P=$!\n"
-      << "fail() { echo \"FAIL: $*\"; cat player.log; kill $P 2>/dev/null; exit 3; }\n"
-      // Polls for the player's answer; the bound (120 s) only matters when it never comes.
-      << "await() { for i in $(seq 6000); do\n"
-      << "  [ \"$(grep -c '^{' trace.jsonl)\" -ge \"$1\" ] && return 0\n"
-      << "  kill -0 $P 2>/dev/null || fail \"the player exited before trace line $1\"\n"
-      << "  sleep 0.02; done; fail \"no trace line $1\"; }\n"
-      << "await 1\n"
-      << "W=$(xdotool search --sync --onlyvisible --name '^odvr' | head -1)\n"
-      << "[ -n \"$W\" ] || fail 'no odvr window'\n"
-      << "xdotool windowfocus $W\n";
-    for (std::size_t i = 0; i < steps_.size(); ++i)
-      s << "xdotool " << steps_[i] << " key F12 || fail 'xdotool: " << i << "'\nawait " << i + 2 << "\n";
-    s << "xdotool key Escape\nwait $P\necho \"player exit $?\"\n";
-    const fs::path script = dir_ / "drive.sh";
-    std::ofstream(script) << s.str();
-    // Key auto-repeat pushed 30 s out: on a loaded machine the server can see a key held past its
-    // 660 ms delay between xdotool's press and release. (It was first taken for why '.' '.' ','
-    // read frame + 2 in one CI run; the cause was the screenshot not waiting for the seek back,
-    // see shot 13.)
-    const std::string cmd = "xvfb-run -a -s '-screen 0 1280x720x24 -ardelay 30000' bash '" + script.string() + "' 2>&1";
-    FILE* pipe = ::popen(cmd.c_str(), "r");
-    char buf[4096];
-    std::size_t n;
-    while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) log_.append(buf, n);
-    ::pclose(pipe);
-    std::vector<json> lines;
-    std::istringstream trace(ReadText(dir_ / "trace.jsonl"));
-    for (std::string line; std::getline(trace, line);)
-      if (!line.empty() && line[0] == '{') lines.push_back(json::parse(line));
-    return lines;
-  }
-  const std::string& log() const { return log_; }
-
- private:
-  fs::path dir_;
-  std::string args_;
-  std::vector<std::string> steps_;
-  std::string log_;
-};
+using odvr::testing::ScriptedWindow;
 
 cv::Mat Shot(const json& line) { return cv::imread(line["file"].get<std::string>()); }
 
@@ -129,7 +68,7 @@ double Number(const std::string& text, const std::string& after) {
 // dragged pixels subtend, pitch stops at ±90°, yaw never stops, the wheel and +/- zoom within
 // 30–150°, space/./, drive playback, and the overlay shows the frame's timings.
 TEST(PlayerWindowGL, DragWheelAndKeysTurnZoomAndStepTheView) {
-  if (const std::string tool = MissingTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
+  if (const std::string tool = MissingWindowTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
   ScratchDir scratch("odvr_player_window");
   const int w = 480, h = 270;
   ScriptedWindow window(scratch.dir, "--no-car --size 480x270 --fov 90");
@@ -254,7 +193,7 @@ CarInShot FindCar(const json& shown, const json& hidden) {
 // The demo with its car: the car is drawn where the player says it projects, W drives it down
 // the street (the view following), and the overlay shows the augmented stages' timings.
 TEST(PlayerWindowGL, CarAppearsAtItsProjectionAndDrivesWithW) {
-  if (const std::string tool = MissingTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
+  if (const std::string tool = MissingWindowTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
   ScratchDir scratch("odvr_player_window_car");
   // Looking 15° right of the car, so that it stands left of the middle.
   // A script of no keys: the car stands until W is pressed, instead of cruising with the video.
@@ -315,7 +254,7 @@ std::string PanelWidget(const std::string& name) {
 // light's level 0 is left out and the car as drawn changes; a second click brings it back. The
 // screenshots compared are taken with the panel and overlay hidden (F1), the whole picture clear.
 TEST(PlayerWindowGL, ClickOnThePanelsLevelCheckboxChangesTheCar) {
-  if (const std::string tool = MissingTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
+  if (const std::string tool = MissingWindowTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
   ScratchDir scratch("odvr_player_window_panel");
   ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15 --panel --drive -:0.01s");
   window.Shot("mousemove --window $W 5 265 key space F1");  // 1: paused, nothing over the picture
