@@ -128,7 +128,7 @@ void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo, d
 // mid-height, at the mean distance from the centre of a square of half-size s to its edge,
 // s (4/π) ln(1 + √2). A bright wall just under the horizon (studio.exr: mean radiance 2.9 within
 // 5° under it, the stand-in 0.80) lit the car's sides in Cycles; replaced, studio_diffuse read 3.8 %
-// dark (docs/benchmarks/render_accuracy.md).
+// dark (docs/notes/render_accuracy.md).
 double KeepBelowHorizon(double mid_height) {
   const double mean_distance =
       render::RenderOptions{}.ground_half_size * (4 / 3.14159265358979323846) * std::log(1 + std::sqrt(2.0));
@@ -759,7 +759,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
   }
   md << Targets(rows);
   md << "\nEvery row is in `render.tsv`; `render.png` plots mean_rel against shade ms. Where the error against "
-        "Cycles came from and what is left, measured term by term: `render_accuracy.md`.\n\n![error against time]"
+        "Cycles came from and what is left, measured term by term: `../notes/render_accuracy.md`.\n\n![error against "
+        "time]"
         "(render.png)\n";
   WriteTextAtomically(fs::path(o.out_dir) / "render.md", md.str());
 

@@ -30,7 +30,8 @@ struct PlayerOptions {
   int voxels = 64;             // visibility grid per side
   int supersample = 1;         // the car's samples per pixel along each axis (adaptive, 1..4)
   // render::RenderOptions::shading_rate for the car: 2 shades one pixel of each smooth 2×2 block
-  // (a frame's time, not its picture: docs/benchmarks/render_accuracy.md); 1 with supersample > 1.
+  // (a frame's time, not its picture: its error moves by a fraction of a per cent); 1 with
+  // supersample > 1.
   int shading_rate = 2;
   bool panel = false;  // window, augmented: the car panel starts open
   bool trace = false;  // window: a JSON line on stdout when ready and per F12 screenshot

@@ -227,8 +227,7 @@ glm::dvec3 ShadeUnderSgLights(std::span<const Lobe> lobes, std::span<const light
 // made them for wo. 0 for BRDFs without GGX: their lobes are Gaussians like the NDFs they stand
 // for. Why: GGX's tail falls as a power of θ_h, every SG's as a Gaussian, so a compact bright
 // light 20–45° off the mirror direction (a studio softbox) lights a glossy GGX paint through a
-// tail the two SGs hold only a few percent of (docs/benchmarks/render_accuracy.md, "GGX's far
-// tail under a sharp light").
+// tail the two SGs hold only a few percent of.
 glm::dvec3 GgxLobeResidual(const Brdf& brdf, const ShadingFrame& frame, const glm::dvec3& wi, const glm::dvec3& wo,
                            std::span<const Lobe> lobes);
 // ∫ GgxLobeResidual(wi) G(wi) dwi for a sharp SG light G (amplitude included), what a renderer

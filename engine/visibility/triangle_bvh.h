@@ -3,7 +3,7 @@
 // Monte-Carlo baseline (render_mc.comp, RenderOptions::monte_carlo_exact_visibility) traverses
 // for its shadow rays instead of marching the voxel volume. Its only use is attribution: the same
 // estimator with exact and with voxel visibility tells how much of the error against Cycles the
-// voxels cost (docs/benchmarks/render_accuracy.md).
+// voxels cost.
 //
 // Layout, shared with the shader: node i is two vec4s, (box min, a) and (box max, count) with a
 // and count stored as int bits (glm::intBitsToFloat). count > 0: a leaf holding triangles

@@ -155,7 +155,7 @@ TEST(BenchRender, ReportOnlyComputesTheTargetsFromTheRows) {
 // demo car in a diffuse paint under studio.exr, against its committed Cycles render. Measured
 // 0.090 (bias 1.000) since the stand-in for Cycles' catcher keeps the map where the car's rays
 // pass beyond it; 0.117 (0.962) before, 0.154 (0.937) with the ground's shadow on every SG's
-// share (docs/benchmarks/render_accuracy.md); 0.085 with 2×2 samples per pixel. The target
+// share (docs/notes/render_accuracy.md); 0.085 with 2×2 samples per pixel. The target
 // is 0.10.
 TEST(BenchRenderGL, StudioDiffuseIsWithinTenPercentOfCycles) {
   if (!fs::exists(fs::path(ODVR_SHARED_DIR) / "data/env/studio.exr"))

@@ -167,7 +167,7 @@ void MeasureModels(const std::vector<Model>& models) {
 // The diffuse lobe is the clamped cosine itself (ClampedCosineMean): what is left is the
 // table's interpolation.
 // GGX's power-law tail under a sharp light off the mirror direction (the studio softbox on the
-// glossy paint's hood, render_accuracy.md): the lobes alone hold a few percent of it, the lobes
+// glossy paint's hood, docs/notes/render_accuracy.md): the lobes alone hold a few percent of it, the lobes
 // plus GgxResidualUnderSgLight (what the renderer adds per peak, clamped at 0) follow quadrature.
 // Light λ = 1000 (the softbox's peak SG: 1076), views 30–80°, the light 0–45° off the mirror
 // direction towards the normal and sideways.
@@ -232,7 +232,7 @@ TEST(Brdf, GgxResidualRecoversTheTailUnderASharpLight) {
 // which lacks the exact layer's n·wi and Smith G, so alone it reads up to 1.3× bright at grazing
 // views (2× with the height-correlated G, before the Principled BSDF's separable one); the
 // residual restores quadrature's answer (it is what lowered studio_diffuse's bias 0.987 → 0.937,
-// render_accuracy.md: the surplus had hidden darkening elsewhere).
+// docs/notes/render_accuracy.md: the surplus had hidden darkening elsewhere).
 TEST(Brdf, GgxResidualIsExactForTheRoughDiffusePaint) {
   const ShadingFrame fr = ShadingFrame::FromNormal(glm::normalize(glm::dvec3(0.2, 1.0, 0.3)), glm::dvec3(1, 0, 0.1));
   const Brdf brdf = MetallicRoughness{glm::dvec3(0.6), 0.0, 1.0};
@@ -380,7 +380,7 @@ TEST(Brdf, CookTorranceSgShadingMatchesQuadrature) {
 // The Principled BSDF's Fresnel instead of Schlick's (material::Fresnel::kPrincipled), taken at each
 // lobe's axis and steeper than Schlick's between 40° and 70°: glTF paint 25° off 27 → 36 % (eq.
 // 4.10; split warp 12 → 19 %), aimed 40 → 37 %, the metal within 0.1 point, the rough paint better
-// by 2–3 points; against Cycles every reference's error fell (render_accuracy.md).
+// by 2–3 points; against Cycles every reference's error fell (docs/notes/render_accuracy.md).
 TEST(Brdf, MetallicRoughnessSgShadingMatchesQuadrature) {
   MeasureModels({{"glTF paint r=0.4 m=0", MetallicRoughness{glm::dvec3(0.6, 0.1, 0.1), 0.0, 0.4}, 0.41, 0.37, 2.15},
                  {"glTF metal r=0.3 m=1", MetallicRoughness{glm::dvec3(0.9, 0.8, 0.6), 1.0, 0.3}, 0.27, 0.9, 1.6},

@@ -249,7 +249,7 @@ TEST_F(CyclesReferenceGL, StreetFrame10CarAndShadow) {
   // Same silhouette to the pixel: the pose, camera and axis conventions agree with Blender's.
   EXPECT_LT(ours_only + ref_only, car / 100) << "the silhouettes differ: a pose or camera convention is off";
   // Measured 0.176 / 0.131 / 0.911 since GGX's residual under the peaks (material::
-  // GgxResidualUnderSgLight; 0.217 / 0.194 / 0.865 before it, render_accuracy.md), no
+  // GgxResidualUnderSgLight; 0.217 / 0.194 / 0.865 before it, docs/notes/render_accuracy.md), no
   // interreflections. The target is 0.10.
   EXPECT_LT(rel_l1, 0.20);
   EXPECT_LT(mean_rel, 0.15);
