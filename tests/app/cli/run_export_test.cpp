@@ -1,9 +1,8 @@
 // `odvr export --projection equirect`: the augmented 360° video itself, run as a user would.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
-#include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -12,35 +11,30 @@
 
 #include "capture/libav_video.h"
 #include "tests/app/run_odvr.h"
+#include "tests/scratch_dir.h"
 
 namespace odvr::app {
 namespace {
 
 namespace fs = std::filesystem;
+using odvr::testing::ReadText;
 using odvr::testing::RunOdvr;
+using odvr::testing::ScratchDir;
 const fs::path kDemo = fs::path(ODVR_SOURCE_DIR) / "media" / "demo";
 
-fs::path TempDir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
-std::string Shell(const std::string& cmd) {
-  std::string out;
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) out.append(buf.data(), n);
-  ::pclose(pipe);
-  return out;
+// ffprobe's stream report of `clip`.
+std::string Probe(const fs::path& clip) {
+  const fs::path report = clip.string() + ".probe.txt";
+  const std::string cmd = "ffprobe -v error -show_streams " + clip.string() + " > " + report.string();
+  if (std::system(cmd.c_str()) != 0) return "";
+  return ReadText(report);
 }
 
 // The 360° clip: the video's own frames at its size, the car composited into them, marked as
 // equirectangular for 360° players; away from the car and its shadow, the recorded pixels.
 TEST(RunExportGL, Equirect360ClipCarriesTheCarTheStreetAndTheSphericalMetadata) {
-  const fs::path dir = TempDir("odvr_export_360");
+  const ScratchDir scratch("odvr_export_360");
+  const fs::path& dir = scratch.dir;
   const fs::path out = dir / "drive360.mp4";
   const std::string base = "export --video " + (kDemo / "street.mp4").string() + " --trajectory " +
                            (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() +
@@ -54,7 +48,7 @@ TEST(RunExportGL, Equirect360ClipCarriesTheCarTheStreetAndTheSphericalMetadata) 
   EXPECT_EQ(report["frames_with_car"].get<int>(), 2);
   EXPECT_GE(report["cube_faces_per_frame"].get<double>(), 1.0);
 
-  const std::string probe = Shell("ffprobe -v error -select_streams v:0 -show_streams " + out.string());
+  const std::string probe = Probe(out);
   EXPECT_NE(probe.find("side_data_type=Spherical Mapping"), std::string::npos) << probe;
   EXPECT_NE(probe.find("projection=equirectangular"), std::string::npos) << probe;
   EXPECT_NE(probe.find("nb_frames=2"), std::string::npos) << probe;
@@ -89,9 +83,7 @@ TEST(RunExportGL, Equirect360ClipCarriesTheCarTheStreetAndTheSphericalMetadata) 
   const auto small = RunOdvr(base + "--size 256x128 --json --out " + (dir / "small.mkv").string());
   ASSERT_EQ(small.exit_code, 0) << small.err;
   EXPECT_EQ(nlohmann::json::parse(small.out)["size"][0].get<int>(), 256);
-  EXPECT_NE(Shell("ffprobe -v error -show_streams " + (dir / "small.mkv").string()).find("projection=equirectangular"),
-            std::string::npos);
-  fs::remove_all(dir);
+  EXPECT_NE(Probe(dir / "small.mkv").find("projection=equirectangular"), std::string::npos);
 }
 
 }  // namespace
