@@ -14,7 +14,7 @@ trap 'rm -rf "$stage"' EXIT
 
 mkdir -p "$stage/bin" "$stage/lib" "$out"
 programs=("$build/app/odvr")
-for t in engine_tests capture_tests; do
+for t in engine_gl_tests capture_gl_tests; do
   [ -x "$build/tests/$t" ] && programs+=("$build/tests/$t")
 done
 cp "${programs[@]}" "$stage/bin/"

@@ -49,7 +49,7 @@ loader=$(ls "$work"/lib/ld-linux-x86-64.so.* | head -1)
 libpath=$work/lib
 # The driver's own libraries (libEGL_nvidia and what it loads), where the target keeps them apart.
 for d in /usr/local/nvidia/lib64 /usr/local/nvidia/lib; do [ -d "$d" ] && libpath=$libpath:$d; done
-for p in odvr engine_tests capture_tests; do
+for p in odvr engine_gl_tests capture_gl_tests; do
   printf '#!/bin/sh\nexec %s --library-path %s %s "$@"\n' "$loader" "$libpath" "$bin/$p" >"$work/$p"
   chmod +x "$work/$p"
 done
@@ -84,7 +84,7 @@ if [ "$quick" = stages ]; then
   step player_live 60 "$odvr" bench player --live --frames 30 --out "$results/player_live.md"
   # The GPU stitch's 12.3 ms a frame in parts: upload, passes (GL timestamps), read-back.
   step stitch 30 "$odvr" bench stitch --gpu --repeats 5 --out "$results/stitch"
-  step tests_render 150 "$work/engine_tests" --gtest_filter='TripleProductRenderer*GL*:CyclesReference*GL*'
+  step tests_render 150 "$work/engine_gl_tests" --gtest_filter='TripleProductRenderer*GL*:CyclesReference*GL*'
   step light_park 60 "$odvr" bench light --gpu --widths 2048 --max-levels 5 --no-least-squares \
     --repeats 9 --min-time-ms 200 --out "$results/light_park" "$env/park.exr"
   # The 1280x720 row timed both as the bench renders (read back) and as the window player does.
@@ -123,7 +123,7 @@ elif [ "$quick" = shade ]; then
   step render_hd 60 "$odvr" bench render --only sunset_glossy --levels 5 --cones 7 --voxels 128 --mc-samples 16 \
     --no-lobe-modes --no-ground-bounce --out "$results/render_hd"
 elif [ "$quick" = quick ]; then
-  step tests_engine 300 "$work/engine_tests" --gtest_filter='ContextGL.*:ComputeGL.*'
+  step tests_engine 300 "$work/engine_gl_tests" --gtest_filter='ContextGL.*:ComputeGL.*'
   step bench_light 300 "$odvr" bench light --gpu --widths 1024 --max-levels 3 --no-least-squares --repeats 1 \
     --min-time-ms 0 --out "$results/light" "$src/../shared/data/env/park.exr"
   step bench_render 300 "$odvr" bench render --only sky_diffuse --levels 3 --cones 7 \
@@ -133,8 +133,8 @@ else
   # over 90 s (the second run took 12 s).
   light() { step "light_$1" "$2" "$odvr" bench light --gpu --widths 2048 --max-levels 6 --no-least-squares \
     --repeats 9 --min-time-ms 200 --out "$results/light_$1" "$env/$1.exr"; }
-  step tests_engine 150 "$work/engine_tests" --gtest_filter='*GL.*:*/*GL.*'
-  step tests_capture 30 "$work/capture_tests" --gtest_filter='*GL.*:*/*GL.*'
+  step tests_engine 150 "$work/engine_gl_tests" --gtest_filter='*GL.*:*/*GL.*'
+  step tests_capture 30 "$work/capture_gl_tests" --gtest_filter='*GL.*:*/*GL.*'
   # Stage by stage: the lighting transform's levels, and a 1280x720 render's voxelize, G-buffer,
   # shade, composite and read-back.
   step light_levels 30 "$odvr" light "$env/sunset.exr" --device gpu --json
