@@ -1,6 +1,7 @@
 #pragma once
-// Internals shared by the GPU path (triple_product_renderer.cpp) and the CPU reference
-// (triple_product_reference.cpp) of TripleProductRenderer. Not part of the engine's API.
+// Internals shared by the GPU path (triple_product_renderer.cpp and the files of its passes,
+// triple_product_impl.h) and the CPU reference (triple_product_reference.cpp) of
+// TripleProductRenderer. Not part of the engine's API.
 #include <algorithm>
 #include <cstdint>
 #include <glm/mat3x3.hpp>
@@ -196,5 +197,9 @@ std::vector<std::uint8_t> FlagPixels(const GBuffer& g, const RenderResult& shade
 // render_fill.comp on the CPU (RenderOptions::shading_rate 2): in each block whose flag is 0 the
 // pixels other than its lower right are overwritten by the mean of the shaded pixels around them.
 void FillHalfRate(const std::vector<std::uint8_t>& block_flags, RenderResult* r);
+
+// RenderOptions::shading_rate 2: 1 for each pixel that was shaded (the lower right of every 2×2
+// block, every pixel of a flagged block), 0 for the filled ones.
+std::vector<std::uint8_t> HalfRateShaded(const std::vector<std::uint8_t>& block_flags, int w, int h);
 
 }  // namespace odvr::render::detail

@@ -53,6 +53,7 @@
 #include "engine/gl/objects.h"
 #include "engine/lighting/sg_lighting.h"
 #include "engine/material/brdf.h"
+#include "engine/render/pinhole_camera.h"
 #include "engine/sphere/equirect_image.h"
 #include "engine/visibility/cones.h"
 #include "engine/visibility/voxel_grid.h"
@@ -62,24 +63,6 @@ struct GltfScene;
 }
 
 namespace odvr::render {
-
-struct PinholeCamera {
-  static constexpr int kMaxSide = 16384;  // pixels per side
-
-  glm::dvec3 position{0, 1.5, 6};
-  glm::dmat3 world_from_camera{1.0};  // columns: camera x (right), y (down), z (forward) in the world
-  double vfov_deg = 40;
-  int width = 640, height = 360;
-
-  // Looks from `position` at `target` with `up` above the image. Throws odvr::Error for a
-  // degenerate view (target at the position, up along the view) or a bad fov or size.
-  static PinholeCamera LookAt(const glm::dvec3& position, const glm::dvec3& target, double vfov_deg, int width,
-                              int height, const glm::dvec3& up = {0, 1, 0});
-  double focal_px() const;
-  // Unit world direction through continuous pixel coordinates (pixel centres at +0.5).
-  glm::dvec3 Ray(double x, double y) const;
-  void Check() const;  // throws odvr::Error naming the field
-};
 
 // Replaces the glTF materials whose name contains `material` (case-insensitive; empty: every
 // material) by the sum of `brdfs` (one or two terms). The whole material: a replaced one emits
