@@ -8,6 +8,7 @@
 #include <cstring>
 #include <functional>
 
+#include "capture/source.h"
 #include "capture/stitcher_gpu.h"
 #include "core/error.h"
 #include "core/parallel.h"
@@ -58,6 +59,10 @@ inline V4 SampleTap(const Px* pixels, const Tap& t, std::uint32_t stride) {
 // Size of a camera image at `level` (0 or 1): the half-resolution level rounds up, its last
 // column (row) averaging the image's last column (row) with itself.
 inline int LevelSize(int full, int level) { return level ? (full + 1) / 2 : full; }
+
+// A linear sample at or above this (in any channel) is taken as clipped: its true value, and so
+// what it says about exposure or alignment, is unknown.
+constexpr float kClipped = 0.98f;
 
 }  // namespace
 
@@ -520,7 +525,6 @@ struct Stitcher::Impl {
     const auto& table = Srgb8ToLinearTable();
     const int n = rig.camera_count();
     // Clipped samples say nothing about exposure (the true value is unknown): marked negative.
-    constexpr float kClipped = 0.98f;
     // All cameras' level rows as one index range, so both threads share every camera's work.
     const auto& first_row = level_first_row;
     std::vector<double> row_sums(first_row.back(), 0.0);
@@ -645,6 +649,72 @@ struct Stitcher::Impl {
     return SolveGains(counts, means, used, options);
   }
 
+  // The seams' disagreement (ChooseSceneDistance): over output pixels seen by two or more used
+  // cameras, none of them clipped, the sums of cos(latitude) times the feathered mean of each
+  // gain-corrected sample's squared difference from the blend (mean over R, G, B), of
+  // cos(latitude), and the pixel count.
+  struct SeamSums {
+    double disagreement = 0, weight = 0;
+    long pixels = 0;
+  };
+  SeamSums SeamDisagreement(const std::vector<bool>& used, const std::vector<double>& gains) {
+    std::array<float, kMaxStitchCameras> g{};
+    for (std::size_t c = 0; c < gains.size(); ++c) g[c] = used[c] ? static_cast<float>(gains[c]) : 0.f;
+    const int w = lut.width, h = lut.height;
+    std::vector<SeamSums> rows(static_cast<std::size_t>(h));
+    const Px* px = pixels.data();
+    pool.ParallelFor(
+        h,
+        [&](long begin, long end) {
+          for (long row = begin; row < end; ++row) {
+            const double cos_lat = std::cos(kPi * ((static_cast<double>(row) + 0.5) / h - 0.5));
+            SeamSums& out = rows[static_cast<std::size_t>(row)];
+            for (int col = 0; col < w; ++col) {
+              const std::size_t p = static_cast<std::size_t>(row) * w + col;
+              // Two passes (the blend, then the differences from it), so that identical samples
+              // score exactly 0 rather than the rounding of a difference of squares.
+              std::array<V4, kMaxStitchCameras> v;
+              std::array<float, kMaxStitchCameras> wt;
+              V4 acc = {0, 0, 0, 0};
+              float wsum = 0;
+              int seen = 0;
+              bool clipped = false;
+              for (std::uint32_t e = lut.offsets[p]; e < lut.offsets[p + 1] && !clipped; ++e) {
+                const Tap& t = taps[e];
+                const std::uint32_t camera = t.packed >> kTapIndexBits;
+                if (g[camera] == 0) continue;
+                const V4 raw = SampleTap(px, t, stride[camera]);
+                clipped = std::max({raw[0], raw[1], raw[2]}) >= kClipped;
+                v[static_cast<std::size_t>(seen)] = g[camera] * raw;
+                wt[static_cast<std::size_t>(seen)] = t.weight;
+                acc += t.weight * v[static_cast<std::size_t>(seen)];
+                wsum += t.weight;
+                ++seen;
+              }
+              if (clipped || seen < 2) continue;
+              const V4 mean = acc / wsum;
+              V4 var = {0, 0, 0, 0};
+              for (int k = 0; k < seen; ++k) {
+                const V4 d = v[static_cast<std::size_t>(k)] - mean;
+                var += wt[static_cast<std::size_t>(k)] * d * d;
+              }
+              var /= wsum;
+              out.disagreement += cos_lat * (static_cast<double>(var[0]) + var[1] + var[2]) / 3;
+              out.weight += cos_lat;
+              ++out.pixels;
+            }
+          }
+        },
+        4);
+    SeamSums total;
+    for (const SeamSums& r : rows) {
+      total.disagreement += r.disagreement;
+      total.weight += r.weight;
+      total.pixels += r.pixels;
+    }
+    return total;
+  }
+
   // Blends every output pixel; with the fill on, pulls level 1 of its pyramid on the way (two
   // output rows at a time, while they are in cache). Returns the number of valid pixels.
   std::size_t WarpCpu(const std::vector<bool>& used, const std::vector<double>& gains, StitchedFrame* out) {
@@ -766,6 +836,135 @@ void Stitcher::Stitch(const std::vector<cv::Mat>& images, StitchedFrame* frame) 
   }
   r.valid_fraction = static_cast<double>(valid) / static_cast<double>(out.valid.size());
   r.ms_total = MsSince(t0);
+}
+
+void SceneDistanceSearch::Check() const {
+  if (candidates_m.empty()) throw UsageError("candidates_m", "needs at least one candidate distance");
+  for (const double d : candidates_m)
+    if (!(d >= 0) || !std::isfinite(d)) throw UsageError("candidates_m", "must be 0 (infinity) or positive distances");
+  if (width < 8 || width % 2) throw UsageError("width", "must be even and at least 8");
+  if (!(min_improvement >= 0 && min_improvement < 1)) throw UsageError("min_improvement", "must be in [0, 1)");
+  if (min_samples < 1) throw UsageError("min_samples", "must be at least 1");
+}
+
+namespace {
+
+// A seam RMS (linear) below which the cameras agree to within float rounding: far below 8-bit
+// quantization (a step of 1 / 255 in sRGB is 3e-4 linear at black).
+constexpr double kNoDisagreement = 1e-5;
+
+std::string DistanceName(double d) {
+  if (d <= 0) return "inf";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g m", d);
+  return buf;
+}
+
+}  // namespace
+
+std::string SceneDistanceChoice::Summary() const {
+  std::string s =
+      "scene distance " + (distance_m > 0 ? DistanceName(distance_m) : std::string("infinity")) + " (seam RMS";
+  char buf[64];
+  for (std::size_t i = 0; i < candidates_m.size() && i < scores.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%s %s %.5f", i ? "," : ":", DistanceName(candidates_m[i]).c_str(), scores[i]);
+    s += buf;
+  }
+  std::snprintf(buf, sizeof buf, "; %d frame set%s, %.0f ms)", frame_sets, frame_sets == 1 ? "" : "s", ms);
+  s += buf;
+  if (!reason.empty()) s += "; infinity kept: " + reason;
+  return s;
+}
+
+SceneDistanceChoice ChooseSceneDistance(const Rig& rig, const std::vector<std::vector<cv::Mat>>& frame_sets,
+                                        const StitchOptions& options, const SceneDistanceSearch& search) {
+  search.Check();
+  const auto t0 = Clock::now();
+  SceneDistanceChoice out;
+  out.candidates_m = search.candidates_m;
+  if (std::find(out.candidates_m.begin(), out.candidates_m.end(), 0.0) == out.candidates_m.end())
+    out.candidates_m.push_back(0);
+  out.frame_sets = static_cast<int>(frame_sets.size());
+  StitchOptions o = options;
+  o.width = search.width;
+  o.height = search.width / 2;
+  o.device = StitchDevice::kCpu;
+  o.fill_unseen = false;
+  for (const double d : out.candidates_m) {
+    o.scene_distance_m = d;
+    Stitcher stitcher(rig, o);
+    Stitcher::Impl& s = *stitcher.impl_;
+    double score_sum = 0;
+    int scored = 0;
+    long pixels = 0;
+    for (const auto& images : frame_sets) {
+      s.CheckImages(images);
+      const std::vector<double> means = s.Linearize(images);
+      const std::vector<bool> used = s.UsableCameras(images, means);
+      const std::vector<double> gains =
+          o.compensate_gains ? s.EstimateGains(used) : std::vector<double>(used.size(), 1.0);
+      const auto sums = s.SeamDisagreement(used, gains);
+      pixels += sums.pixels;
+      if (sums.weight > 0) {
+        score_sum += std::sqrt(sums.disagreement / sums.weight);
+        ++scored;
+      }
+    }
+    out.scores.push_back(scored ? score_sum / scored : std::nan(""));
+    out.samples.push_back(pixels);
+  }
+  const std::size_t at_infinity = static_cast<std::size_t>(
+      std::find(out.candidates_m.begin(), out.candidates_m.end(), 0.0) - out.candidates_m.begin());
+  const double infinity_score = out.scores[at_infinity];
+  std::size_t best = at_infinity;
+  for (std::size_t i = 0; i < out.candidates_m.size(); ++i)
+    if (out.samples[i] >= search.min_samples && out.scores[i] < out.scores[best]) best = i;
+  char buf[200];
+  if (frame_sets.empty()) {
+    out.reason = "no frame set to score";
+  } else if (out.samples[at_infinity] < search.min_samples) {
+    std::snprintf(buf, sizeof buf, "the overlaps hold %ld usable pixels, fewer than the %ld needed to compare",
+                  out.samples[at_infinity], search.min_samples);
+    out.reason = buf;
+  } else if (!(infinity_score > kNoDisagreement)) {
+    out.reason = "the overlaps agree at infinity to within rounding (no texture to align)";
+  } else if (1 - out.scores[best] / infinity_score < search.min_improvement) {
+    std::snprintf(buf, sizeof buf,
+                  "no distance lowers the seams' disagreement by %.0f %% (best %s: %.1f %%): a textureless or "
+                  "distant scene",
+                  100 * search.min_improvement, DistanceName(out.candidates_m[best]).c_str(),
+                  100 * (1 - out.scores[best] / infinity_score));
+    out.reason = buf;
+  } else {
+    out.distance_m = out.candidates_m[best];
+  }
+  out.ms = MsSince(t0);
+  return out;
+}
+
+std::optional<SceneDistanceChoice> ChooseSceneDistanceForRecording(const Rig& rig, Source* source, long first,
+                                                                   long frames, const StitchOptions& options, int sets,
+                                                                   const SceneDistanceSearch& search) {
+  if (source->live() || sets < 1) return std::nullopt;
+  long span = frames > 0 ? frames : std::max(1L, source->frame_count() - first);
+  if (source->frame_count() > 0) span = std::clamp(span, 1L, std::max(1L, source->frame_count() - first));
+  std::vector<std::vector<cv::Mat>> images;
+  long last = -1;
+  for (int k = 0; k < sets; ++k) {
+    const long index = first + (sets > 1 ? k * (span - 1) / (sets - 1) : 0);
+    if (index == last) continue;
+    last = index;
+    if (!source->Seek(index)) {
+      if (images.empty()) return std::nullopt;
+      break;
+    }
+    auto set = source->Next();
+    if (!set) break;
+    std::vector<cv::Mat>& one = images.emplace_back();
+    for (const auto& f : set->frames) one.push_back(f.image);
+  }
+  source->Seek(first);
+  return ChooseSceneDistance(rig, images, options, search);
 }
 
 }  // namespace odvr::capture

@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <memory>
 #include <opencv2/core/mat.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,7 @@ struct StitchOptions {
   StitchDevice device = StitchDevice::kCpu;
   // Distance at which the cameras' rays are made to meet (metres). 0 = infinity: pure bearings,
   // right for the sky and far facades; a finite value trades near for far parallax.
+  // ChooseSceneDistance picks one from the frames (`odvr stitch` does so by default).
   double scene_distance_m = 0;
   bool compensate_gains = true;
   bool fill_unseen = true;
@@ -137,6 +139,63 @@ struct StitchedFrame {
   StitchReport report;
 };
 
+// Choosing the scene distance from the frames: each candidate's lookup table is built at a
+// reduced size and the cameras' gain-corrected samples are compared where they overlap. The
+// score of a candidate is the RMS (linear RGB) of each camera's sample from the overlap's
+// feathered blend, each output pixel weighted by its solid angle (cos latitude), so the
+// equirect's stretched poles do not outvote the horizon; the lower, the less the seams
+// disagree. Pixels where a camera is clipped (exposure says nothing there) and cameras left out
+// of the stitch (missing or black frames) take no part. Over several frame sets a candidate's
+// score is the mean of theirs.
+//
+// Infinity is always among the candidates and is kept, with a reason, unless the best one lowers
+// its score by at least min_improvement: with too few overlap samples (cameras that do not
+// overlap, all black but one) there is no evidence, and where the score barely depends on the
+// distance (a textureless or distant scene, sky-only overlaps) infinity is right for the far
+// scene and costs the near one nothing measurable.
+struct SceneDistanceSearch {
+  // Metres; 0 = infinity. A geometric ladder: parallax goes with 1 / distance, so the steps are
+  // even in what they change at the seams.
+  std::vector<double> candidates_m = {2, 3, 5, 8, 12, 20, 40, 0};
+  int width = 512;  // of the reduced lookup tables (height width / 2)
+  double min_improvement = 0.03;
+  long min_samples = 500;  // overlap samples (over all frame sets) below which infinity is kept
+
+  // Throws odvr::UsageError naming the bad field.
+  void Check() const;
+};
+
+struct SceneDistanceChoice {
+  double distance_m = 0;             // the choice; 0 = infinity
+  std::vector<double> candidates_m;  // as scored (0 = infinity)
+  std::vector<double> scores;        // per candidate: RMS disagreement (NaN: no overlap sample)
+  std::vector<long> samples;         // per candidate: overlap pixels scored, over all frame sets
+  int frame_sets = 0;                // frame sets scored
+  std::string reason;                // why infinity was kept (empty when chosen by score)
+  double ms = 0;
+
+  // "scene distance 8 m (seam RMS 2 m 0.0412, ..., inf 0.0455; 1 frame set, 95 ms)".
+  std::string Summary() const;
+};
+
+// Scores `frame_sets` (each one image per camera, as Stitcher::Stitch takes them) at every
+// candidate with `options`' gains, feather and prefilter settings (its size, device, fill and
+// distance are not used; the scoring runs on the CPU). Throws odvr::Error for frame sets the
+// stitcher would refuse, odvr::UsageError for bad options.
+SceneDistanceChoice ChooseSceneDistance(const Rig& rig, const std::vector<std::vector<cv::Mat>>& frame_sets,
+                                        const StitchOptions& options, const SceneDistanceSearch& search = {});
+
+class Source;
+// The choice for a clip, as `odvr stitch --scene-distance auto` makes it: from up to `sets` frame
+// sets spread evenly over frames [first, first + frames) of a recording (frames 0: to its end),
+// read through Seek, after which the source is left at `first`; a single frame can be
+// unrepresentative (a passing lorry, a camera still adjusting its exposure). Returns nullopt,
+// reading nothing, for a live source or one that cannot seek: choose from its first set then.
+std::optional<SceneDistanceChoice> ChooseSceneDistanceForRecording(const Rig& rig, Source* source, long first,
+                                                                   long frames, const StitchOptions& options,
+                                                                   int sets = 3,
+                                                                   const SceneDistanceSearch& search = {});
+
 class Stitcher {
  public:
   // Builds the lookup table (and, for the GPU, the programs and buffers: a GL 4.5 context must
@@ -158,6 +217,8 @@ class Stitcher {
   double lut_build_ms() const;
 
  private:
+  friend SceneDistanceChoice ChooseSceneDistance(const Rig&, const std::vector<std::vector<cv::Mat>>&,
+                                                 const StitchOptions&, const SceneDistanceSearch&);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
