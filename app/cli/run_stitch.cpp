@@ -5,12 +5,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <utility>
 
 #include "app/cli/commands.h"
 #include "capture/libav_video_writer.h"
@@ -31,7 +33,7 @@ namespace fs = std::filesystem;
 struct StitchCommand {
   std::string rig, in, out, size = "2048x1024", device = "gpu", format = "exr";
   long frames = 0, start = 0;
-  double scene_distance_m = 0;
+  std::string scene_distance = "auto";  // "auto", or metres (0 = infinity)
   bool no_gains = false, no_fill = false, json = false;
 };
 
@@ -45,6 +47,24 @@ cv::Mat ToBgr8(const sphere::EquirectImage& img) {
     }
   }
   return out;
+}
+
+// How the scene distance was set: the value (metres, 0 = infinity) and, when chosen, every score.
+nlohmann::json SceneDistanceJson(const capture::StitchOptions& options,
+                                 const std::optional<capture::SceneDistanceChoice>& choice) {
+  nlohmann::json j = {{"metres", options.scene_distance_m}, {"mode", choice ? "auto" : "given"}};
+  if (choice) {
+    nlohmann::json scores = nlohmann::json::array();
+    for (std::size_t i = 0; i < choice->candidates_m.size(); ++i)
+      scores.push_back({{"metres", choice->candidates_m[i]},
+                        {"seam_rms", std::isfinite(choice->scores[i]) ? nlohmann::json(choice->scores[i]) : nullptr},
+                        {"pixels", choice->samples[i]}});
+    j["candidates"] = scores;
+    j["frame_sets"] = choice->frame_sets;
+    j["reason"] = choice->reason;
+    j["ms"] = choice->ms;
+  }
+  return j;
 }
 
 // The rig's own image folders (rig.json "image_dir", relative to the rig file) when --in is not given.
@@ -67,7 +87,19 @@ int RunStitch(const StitchCommand& c) {
   options.device = c.device == "gpu" ? capture::StitchDevice::kGpu : capture::StitchDevice::kCpu;
   options.compensate_gains = !c.no_gains;
   options.fill_unseen = !c.no_fill;
-  options.scene_distance_m = c.scene_distance_m;
+  const bool auto_distance = c.scene_distance == "auto";
+  if (!auto_distance) {
+    std::size_t used = 0;
+    try {
+      options.scene_distance_m = std::stod(c.scene_distance, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != c.scene_distance.size())
+      throw UsageError("--scene-distance", "expects auto or metres (0 = infinity), got '" + c.scene_distance + "'");
+    if (!(options.scene_distance_m >= 0) || !std::isfinite(options.scene_distance_m))
+      throw UsageError("--scene-distance", "must be auto, 0 (infinity) or a positive distance");
+  }
   options.Check();
   if (c.frames < 0) throw UsageError("--frames", "must not be negative");
   if (c.start < 0) throw UsageError("--first", "must not be negative");
@@ -94,6 +126,24 @@ int RunStitch(const StitchCommand& c) {
       throw Error("--device gpu", std::string("no OpenGL 4.5 context (") + e.what() + "); use --device cpu");
     }
   }
+  // --scene-distance auto: chosen once for the clip, from frames spread over a recording, or from
+  // the first frame set of a live source (which is then stitched first).
+  std::optional<capture::SceneDistanceChoice> choice;
+  std::optional<capture::FrameSet> first_set;
+  if (auto_distance) {
+    choice = capture::ChooseSceneDistanceForRecording(rig, source.get(), c.start, c.frames, options);
+    if (!choice) {
+      first_set = source->Next();
+      std::vector<std::vector<cv::Mat>> sets;
+      if (first_set) {
+        std::vector<cv::Mat>& images = sets.emplace_back();
+        for (const auto& f : first_set->frames) images.push_back(f.image);
+      }
+      choice = capture::ChooseSceneDistance(rig, sets, options);
+    }
+    options.scene_distance_m = choice->distance_m;
+    if (!c.json) std::cout << choice->Summary() << "\n";
+  }
   capture::Stitcher stitcher(rig, options);
   const bool progress = !c.json && ::isatty(STDERR_FILENO);
   const long total = c.frames > 0 ? c.frames : std::max(0L, source->frame_count() - c.start);
@@ -107,7 +157,7 @@ int RunStitch(const StitchCommand& c) {
   auto loop = [&](const std::function<void(long, const capture::StitchedFrame&)>& sink) {
     long done = 0;
     while (c.frames == 0 || done < c.frames) {
-      auto set = source->Next();
+      auto set = first_set ? std::exchange(first_set, std::nullopt) : source->Next();
       if (!set) break;
       for (const auto& e : source->TakeEvents()) {
         ++events;
@@ -175,6 +225,7 @@ int RunStitch(const StitchCommand& c) {
                                 {"size", {options.width, options.height}},
                                 {"frames", ms.size()},
                                 {"lut_build_ms", stitcher.lut_build_ms()},
+                                {"scene_distance", SceneDistanceJson(options, choice)},
                                 {"median_ms", median},
                                 {"drops",
                                  {{"dropped", stats.frames_dropped},
@@ -186,9 +237,11 @@ int RunStitch(const StitchCommand& c) {
                      .dump(2)
               << "\n";
   } else {
-    std::cout << "stitched " << ms.size() << " frames to " << c.out << " on the " << c.device << " (median " << median
-              << " ms per frame, lookup table " << stitcher.lut_build_ms() << " ms; missing " << stats.missing_frames
-              << ", corrupt " << stats.corrupt_frames << ", dropped " << stats.frames_dropped << ")\n";
+    std::cout << "stitched " << ms.size() << " frames to " << c.out << " on the " << c.device << " (scene distance "
+              << (options.scene_distance_m > 0 ? fmt::format("{:g} m", options.scene_distance_m) : "infinity")
+              << (choice ? ", chosen" : "") << ", median " << median << " ms per frame, lookup table "
+              << stitcher.lut_build_ms() << " ms; missing " << stats.missing_frames << ", corrupt "
+              << stats.corrupt_frames << ", dropped " << stats.frames_dropped << ")\n";
   }
   return 0;
 }
@@ -207,7 +260,9 @@ CommandFn AddStitch(CLI::App* sub) {
   // Checked where given: 0 stands for "all" in StitchCommand.
   sub->add_option("--frames", c->frames, "Stitch at most this many frames (default: all)")->check(CLI::PositiveNumber);
   sub->add_option("--first,--start", c->start, "First frame of a recording");
-  sub->add_option("--scene-distance", c->scene_distance_m, "Metres at which camera rays meet (0 = infinity)")
+  sub->add_option("--scene-distance", c->scene_distance,
+                  "Metres at which camera rays meet (0 = infinity), or auto: the candidate (2 to 40 m, infinity) "
+                  "whose seams disagree least on frames spread over the clip")
       ->capture_default_str();
   sub->add_flag("--no-gains", c->no_gains, "Do not compensate the cameras' exposure differences");
   sub->add_flag("--no-fill", c->no_fill, "Leave unseen directions (zenith, nadir) black");
