@@ -33,14 +33,19 @@ constexpr int kMatchFrames = 3;      // COLMAP's sequential overlap, in frames (
 constexpr double kNadirCapDeg = 20;  // odvr reconstruct's default
 constexpr const char* kStem = "tracking_equirect";
 
-// The rig's images stitched by odvr (CPU) at width x width/2, written as PNG frames.
-void StitchRig(const fs::path& dataset, const capture::Rig& rig, long frames, int width, const fs::path& out) {
+// The rig's images stitched by odvr (CPU) at width x width/2, written as PNG frames, with the
+// scene distance chosen from the frames as `odvr stitch` chooses it by default. Returns the choice.
+capture::SceneDistanceChoice StitchRig(const fs::path& dataset, const capture::Rig& rig, long frames, int width,
+                                       const fs::path& out) {
   std::vector<std::string> dirs;
   for (const auto& cam : rig.cameras) dirs.push_back((dataset / cam.image_dir).string());
   auto source = capture::OpenImageSequences(dirs, {});
   capture::StitchOptions options;
   options.width = width;
   options.height = width / 2;
+  auto choice = capture::ChooseSceneDistanceForRecording(rig, source.get(), 0, frames, options);
+  if (!choice) throw Error(dataset.string(), "the rig's image sequences cannot seek");
+  options.scene_distance_m = choice->distance_m;
   capture::Stitcher stitcher(rig, options);
   fs::create_directories(out);
   for (long f = 0; f < frames; ++f) {
@@ -48,6 +53,7 @@ void StitchRig(const fs::path& dataset, const capture::Rig& rig, long frames, in
     if (!set) throw Error(dataset.string(), "the rig has only " + std::to_string(f) + " frames to stitch");
     image::SaveImage(out / fmt::format("{:06d}.png", f), stitcher.Stitch(*set).image);
   }
+  return *choice;
 }
 
 OdvrRun EquirectRun(const std::string& method, const std::string& dataset, const fs::path& video, long frames,
@@ -185,7 +191,8 @@ std::string Targets(const Results& r, const std::vector<std::string>& inputs) {
 }
 
 void WriteEquirectReport(const Results& r, const std::vector<ClipRow>& clips, const std::vector<LongClipRow>& long_rows,
-                         const std::vector<std::string>& inputs, const EquirectBenchOptions& o) {
+                         const std::vector<std::string>& inputs, const capture::SceneDistanceChoice& stitch_distance,
+                         const EquirectBenchOptions& o) {
   const fs::path dir = o.out_dir;
   fs::create_directories(dir);
   WriteResults(r, dir, kStem);
@@ -198,8 +205,9 @@ void WriteEquirectReport(const Results& r, const std::vector<ClipRow>& clips, co
      << ", yuv420p): compression alone.\n"
      << "- `stitched H.264`: its six fisheyes stitched by odvr's stitcher (CPU) at `odvr stitch`'s default size, "
      << capture::StitchOptions().width << "×" << capture::StitchOptions().height
-     << ", encoded the same way: seams, exposure steps and the stitcher's parallax. odvr tracks it at " << o.width
-     << " wide, as it does a consumer camera's 5.7K clip.\n"
+     << " and its scene distance chosen from the frames as `odvr stitch` chooses it by default ("
+     << stitch_distance.Summary() << "), encoded the same way: seams, exposure steps and the stitcher's parallax. "
+     << "odvr tracks it at " << o.width << " wide, as it does a consumer camera's 5.7K clip.\n"
      << "- `stitched H.264 tracked at " << capture::StitchOptions().width
      << "`: the same video tracked at its full width (odvr alone): what the tracking width trades, speed against "
         "error.\n\n"
@@ -275,10 +283,10 @@ int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
     }
   } cleanup{work};
   BenchProgress overall("bench reconstruct --equirect", 3 + (o.no_colmap ? 0 : 8) + (o.long_frames > 0 ? 1 : 0));
-  // (b) is the rig stitched as `odvr stitch` makes it by default (StitchOptions' size), then
-  // tracked at --track-width, as a user's 5.7K clip is; a second row tracks it at the stitched
-  // width: the speed/accuracy trade of the tracking width (odvr alone: COLMAP's cost is the
-  // cube faces, not this).
+  // (b) is the rig stitched as `odvr stitch` makes it by default (StitchOptions' size, the scene
+  // distance chosen from the frames), then tracked at --track-width, as a user's 5.7K clip is; a
+  // second row tracks it at the stitched width: the speed/accuracy trade of the tracking width
+  // (odvr alone: COLMAP's cost is the cube faces, not this).
   struct Input {
     std::string label;
     fs::path video;
@@ -286,8 +294,10 @@ int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
     bool colmap = true;
   };
   const int stitched_width = capture::StitchOptions().width;
+  capture::SceneDistanceChoice stitch_distance;
   const fs::path stitched = [&] {
-    StitchRig(dataset, rig, frames, stitched_width, work / "stitched");
+    stitch_distance = StitchRig(dataset, rig, frames, stitched_width, work / "stitched");
+    std::cout << "stitched H.264: " << stitch_distance.Summary() << "\n";
     return EncodeH264(work / "stitched", frames, o.crf, work / "stitched.mp4");
   }();
   std::vector<Input> inputs = {
@@ -332,7 +342,7 @@ int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
     long_rows = RunLongClips(dataset, truth, {o.long_frames / 3, o.long_frames}, o.crf, height, work);
     overall.Step("the long clip");
   }
-  WriteEquirectReport(results, clips, long_rows, labels, o);
+  WriteEquirectReport(results, clips, long_rows, labels, stitch_distance, o);
   for (const auto& m : results.rows)
     std::cout << fmt::format("{}: {} s, {}/{} frames posed, ATE {} m ({} %), scale error {} %\n", m.method,
                              Num(m.seconds, 1), m.frames_posed, m.frames, Num(m.ate_m, 4), Num(m.ate_percent, 3),
