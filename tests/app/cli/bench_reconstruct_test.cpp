@@ -189,6 +189,7 @@ TEST(BenchReconstruct, EquirectRowsForBothVideosAndTheRigWithTheirTargets) {
   const std::string md = ReadText(t.dir / "tracking_equirect.md");
   EXPECT_NE(md.find("## Targets"), std::string::npos);
   EXPECT_NE(md.find("## Real clips"), std::string::npos);
+  EXPECT_NE(md.find("scene distance chosen from the frames"), std::string::npos) << "as odvr stitch chooses it";
   EXPECT_NE(md.find("## A long clip"), std::string::npos);
   EXPECT_NE(md.find("| 8 | "), std::string::npos) << "a third of it";
   EXPECT_NE(md.find("| 24/24 | 24 | 1 | "), std::string::npos) << "every frame posed, each a key frame, one chunk";

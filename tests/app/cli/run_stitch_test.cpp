@@ -46,6 +46,28 @@ TEST(RunStitch, StitchesTwoStreetFramesToPngOnTheCpu) {
     EXPECT_GT(cv::mean(img)[1], 20);  // an image, not black
   }
   EXPECT_FALSE(fs::exists(out / "000002.png"));
+  // By default the scene distance is chosen from the frames (both of them), every candidate
+  // scored; street_a's facades stand 5 to 15 m away.
+  const auto& d = j["scene_distance"];
+  EXPECT_EQ(d["mode"], "auto");
+  EXPECT_EQ(d["frame_sets"].get<int>(), 2);
+  EXPECT_GE(d["metres"].get<double>(), 5) << d.dump();
+  EXPECT_LE(d["metres"].get<double>(), 20) << d.dump();
+  EXPECT_EQ(d["reason"], "");
+  EXPECT_EQ(d["candidates"].size(), 8u);
+  for (const auto& c : d["candidates"]) EXPECT_GT(c["seam_rms"].get<double>(), 0) << d.dump();
+}
+
+TEST(RunStitch, AGivenSceneDistanceIsKept) {
+  if (!fs::exists(kStreet / "rig.json")) GTEST_SKIP() << kStreet << " absent (no ../shared data)";
+  const ScratchDir t{"odvr_run_stitch"};
+  const CliRun r = RunOdvr("stitch --rig " + (kStreet / "rig.json").string() + " --out " + (t.dir / "p").string() +
+                           " --format png --size 256x128 --device cpu --frames 1 --scene-distance 0 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["scene_distance"]["mode"], "given");
+  EXPECT_EQ(j["scene_distance"]["metres"].get<double>(), 0);
+  EXPECT_FALSE(j["scene_distance"].contains("candidates"));
 }
 
 TEST(RunStitch, WritesAnMp4FromTheRigFilesOwnImageFolders) {
@@ -76,6 +98,11 @@ TEST(RunStitch, BadInputsEndInOneLine) {
   const CliRun no_frames = RunOdvr("stitch --rig x.json --out o --frames 0");
   EXPECT_EQ(no_frames.exit_code, 2);
   EXPECT_NE(no_frames.err.find("--frames"), std::string::npos) << no_frames.err;
+
+  const CliRun bad_distance = RunOdvr("stitch --rig x.json --out o --scene-distance far");
+  EXPECT_EQ(bad_distance.exit_code, 2);
+  EXPECT_NE(bad_distance.err.find("--scene-distance"), std::string::npos) << bad_distance.err;
+  EXPECT_NE(bad_distance.err.find("'far'"), std::string::npos) << bad_distance.err;
 
   if (!fs::exists(kStreet / "rig.json")) return;
   // Five camera folders for a six-camera rig.
