@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -138,6 +139,42 @@ TEST(Rig, TheConfigDemoRigIsTheMediaDemoRig) {
     EXPECT_EQ(fs::canonical(config.path.parent_path() / a.image_dir),
               fs::canonical(media.path.parent_path() / b.image_dir));
   }
+}
+
+// config/gopro_fusion_5_2k.json is the GoPro Fusion of ../shared/data/rig_fusion: two
+// equidistant fisheyes back to back, each 190° wide, so their optical axes are opposite and
+// level, a ray 95° off an axis lands on that lens's image circle (radius 1335 and 1338 px, from
+// the data's parameter file), the lenses are centimetres apart and the height is unknown.
+TEST(Rig, TheGoProFusionRigHasTwoOppositeFisheyes) {
+  const Rig rig = LoadRig(fs::path(ODVR_SOURCE_DIR) / "config/gopro_fusion_5_2k.json");
+  ASSERT_EQ(rig.camera_count(), 2);
+  EXPECT_EQ(rig.height_m, 0) << "no height: the trajectory is up to scale";
+  const double radius[2] = {1335, 1338};
+  Eigen::Vector3d axis[2];
+  for (int i = 0; i < 2; ++i) {
+    const RigCamera& cam = rig.cameras[static_cast<std::size_t>(i)];
+    EXPECT_EQ(cam.model.type(), CameraModelType::kFisheye) << cam.name;
+    EXPECT_EQ(cam.model.width(), 2704);
+    EXPECT_EQ(cam.model.height(), 2624);
+    axis[i] = cam.rig_from_cam.topLeftCorner<3, 3>() * Eigen::Vector3d::UnitZ();
+    EXPECT_NEAR(axis[i].z(), 0, 1e-9) << cam.name << ": level";
+    const double a = 95 * M_PI / 180;
+    Eigen::Vector2d px;
+    ASSERT_TRUE(cam.model.Project({std::sin(a), 0, std::cos(a)}, &px));
+    EXPECT_NEAR((px - Eigen::Vector2d(cam.model.cx(), cam.model.cy())).norm(), radius[i], 1e-3) << cam.name;
+  }
+  EXPECT_NEAR(axis[0].x(), 1, 1e-9) << "cam0 looks forward";
+  EXPECT_NEAR(axis[0].dot(axis[1]), -1, 1e-9) << "the back lens looks the other way";
+  // Up stays up: the back lens is turned about the up axis, not flipped.
+  for (const auto& cam : rig.cameras)
+    EXPECT_NEAR((cam.rig_from_cam.topLeftCorner<3, 3>() * Eigen::Vector3d::UnitY()).z(), -1, 1e-9) << cam.name;
+  const double baseline = (rig.cameras[0].rig_from_cam - rig.cameras[1].rig_from_cam).topRightCorner<3, 1>().norm();
+  EXPECT_GT(baseline, 0);
+  EXPECT_LT(baseline, 0.05);
+  const fs::path shared_frames = fs::path(ODVR_SHARED_DIR) / "data/rig_fusion/5_2k/directory";
+  if (!fs::is_directory(shared_frames)) return;
+  EXPECT_EQ(fs::canonical(rig.path.parent_path() / rig.cameras[0].image_dir), fs::canonical(shared_frames / "FR"));
+  EXPECT_EQ(fs::canonical(rig.path.parent_path() / rig.cameras[1].image_dir), fs::canonical(shared_frames / "BK"));
 }
 
 TEST(Rig, ReadsKalibrStylePinholeEquidistantAsFisheye) {
