@@ -33,24 +33,24 @@ constexpr int kMatchFrames = 3;      // COLMAP's sequential overlap, in frames (
 constexpr double kNadirCapDeg = 20;  // odvr reconstruct's default
 constexpr const char* kStem = "tracking_equirect";
 
-// The rig's images stitched by odvr (CPU) at width x width/2, written as PNG frames, with the
-// scene distance chosen from the frames as `odvr stitch` chooses it by default. Returns the choice.
-capture::SceneDistanceChoice StitchRig(const fs::path& dataset, const capture::Rig& rig, long frames, int width,
-                                       const fs::path& out) {
-  std::vector<std::string> dirs;
-  for (const auto& cam : rig.cameras) dirs.push_back((dataset / cam.image_dir).string());
+// A rig's image folders (one per camera, in the rig's order) stitched by odvr (CPU) at
+// width x width/2, written as PNG frames, with the scene distance chosen from the frames as
+// `odvr stitch` chooses it by default. Returns the choice.
+capture::SceneDistanceChoice StitchRig(const capture::Rig& rig, const std::vector<std::string>& dirs, long frames,
+                                       int width, const fs::path& out) {
+  const std::string what = dirs.empty() ? std::string("the rig") : fs::path(dirs.front()).parent_path().string();
   auto source = capture::OpenImageSequences(dirs, {});
   capture::StitchOptions options;
   options.width = width;
   options.height = width / 2;
   auto choice = capture::ChooseSceneDistanceForRecording(rig, source.get(), 0, frames, options);
-  if (!choice) throw Error(dataset.string(), "the rig's image sequences cannot seek");
+  if (!choice) throw Error(what, "the rig's image sequences cannot seek");
   options.scene_distance_m = choice->distance_m;
   capture::Stitcher stitcher(rig, options);
   fs::create_directories(out);
   for (long f = 0; f < frames; ++f) {
     auto set = source->Next();
-    if (!set) throw Error(dataset.string(), "the rig has only " + std::to_string(f) + " frames to stitch");
+    if (!set) throw Error(what, "the rig has only " + std::to_string(f) + " frames to stitch");
     image::SaveImage(out / fmt::format("{:06d}.png", f), stitcher.Stitch(*set).image);
   }
   return *choice;
@@ -296,7 +296,9 @@ int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
   const int stitched_width = capture::StitchOptions().width;
   capture::SceneDistanceChoice stitch_distance;
   const fs::path stitched = [&] {
-    stitch_distance = StitchRig(dataset, rig, frames, stitched_width, work / "stitched");
+    std::vector<std::string> dirs;
+    for (const auto& cam : rig.cameras) dirs.push_back((dataset / cam.image_dir).string());
+    stitch_distance = StitchRig(rig, dirs, frames, stitched_width, work / "stitched");
     std::cout << "stitched H.264: " << stitch_distance.Summary() << "\n";
     return EncodeH264(work / "stitched", frames, o.crf, work / "stitched.mp4");
   }();
