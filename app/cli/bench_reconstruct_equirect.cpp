@@ -6,9 +6,11 @@
 //   (b) the rig's six fisheyes stitched by odvr's stitcher, then encoded the same way: real seams,
 //       exposure steps and the stitcher's parallax, as a 360° camera's own stitching leaves them.
 // Each with --camera-height (metric from the road plane) and without (up to scale). Then the real
-// clips of ../shared/data/video360: every frame posed with its reprojection error, or why not.
+// clips of ../shared/data/video360 and the GoPro Fusion of ../shared/data/rig_fusion (a real moving
+// two-fisheye rig, stitched first): every frame posed with its reprojection error, or why not.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -154,6 +156,38 @@ ClipRow RunClip(const fs::path& clip, int width, long max_frames) {
   return row;
 }
 
+// The GoPro Fusion of ../shared/data/rig_fusion/5_2k: a real moving two-fisheye rig, no ground
+// truth. Its frame pairs are stitched as case (b) stitches the street rig (same stitcher, size
+// and automatic scene distance; calibration config/gopro_fusion_5_2k.json), then tracked as one
+// equirect camera without a height from the PNG frames, as `odvr reconstruct --images DIR` reads
+// them. Always a row: absent data, a failed stitch or unposed frames are its note.
+ClipRow RunFusionRig(const fs::path& data, int width, long max_frames, const fs::path& work) {
+  const fs::path frames_dir = data / "rig_fusion" / "5_2k" / "directory";
+  ClipRow row;
+  if (!fs::is_directory(frames_dir)) {
+    row.note = "skipped: " + frames_dir.string() + " is absent";
+  } else {
+    try {
+      const capture::Rig rig = capture::LoadRig(fs::path(ODVR_SOURCE_DIR) / "config" / "gopro_fusion_5_2k.json");
+      // The rig file names each camera's folder relative to itself; the bench reads the folders of
+      // those names beside --dataset, so another data folder works the same.
+      std::vector<std::string> dirs;
+      for (const auto& cam : rig.cameras) dirs.push_back((frames_dir / fs::path(cam.image_dir).filename()).string());
+      long frames = static_cast<long>(capture::ImageFiles(dirs.front()).size());
+      if (max_frames > 0) frames = std::min(frames, max_frames);  // as many as the other clips give
+      const fs::path stitched = work / "rig_fusion";
+      const auto choice = StitchRig(rig, dirs, frames, capture::StitchOptions().width, stitched);
+      std::cout << "rig_fusion/5_2k stitched: " << choice.Summary() << "\n";
+      row = RunClip(stitched, width, max_frames);
+    } catch (const std::exception& e) {
+      row.note = std::string("failed: ") + e.what();
+    }
+  }
+  row.clip = "rig_fusion/5_2k (stitched)";
+  row.layout = "two fisheyes";
+  return row;
+}
+
 const MethodRow* Row(const Results& r, const std::string& method) {
   for (const auto& m : r.rows)
     if (m.method == method) return &m;
@@ -238,7 +272,13 @@ void WriteEquirectReport(const Results& r, const std::vector<ClipRow>& clips, co
   md << Targets(r, inputs);
   md << "\n## Real clips (`../shared/data/video360`): no ground truth\n\n"
      << "Each as `odvr reconstruct --video` reads it (stereo by the frame's shape, one eye, " << o.width
-     << " wide at most, no camera height), the first " << o.clip_frames << " frames.\n\n"
+     << " wide at most, no camera height), the first " << o.clip_frames
+     << " frames. `rig_fusion/5_2k (stitched)` is a real moving two-fisheye rig, a GoPro Fusion "
+        "(`../shared/data/rig_fusion/5_2k`, calibrated by `config/gopro_fusion_5_2k.json` from the fisheye "
+        "circles its data gives): its frame pairs stitched as `stitched H.264` is stitched (odvr's stitcher, "
+     << capture::StitchOptions().width << "×" << capture::StitchOptions().height
+     << ", the scene distance chosen from the frames), then tracked the same way from the PNG frames, as "
+        "`odvr reconstruct --images DIR` reads them (its seconds: the tracking alone, as for the clips).\n\n"
      << "| clip | layout | seconds | frames posed | points | reprojection RMSE (px) | note "
         "|\n|---|---|---|---|---|---|---|\n";
   for (const auto& c : clips)
@@ -339,6 +379,7 @@ int RunBenchReconstructEquirect(const EquirectBenchOptions& o) {
   const fs::path video360 = dataset.parent_path() / "video360";
   for (const char* clip : {"gopro_max_moving", "iceland0.ts", "testRoom1_1920Mono.mp4", "congo.mp4"})
     if (fs::exists(video360 / clip)) clips.push_back(RunClip(video360 / clip, o.width, o.clip_frames));
+  clips.push_back(RunFusionRig(dataset.parent_path(), o.width, o.clip_frames, work));
   std::vector<LongClipRow> long_rows;
   if (o.long_frames > 0) {
     long_rows = RunLongClips(dataset, truth, {o.long_frames / 3, o.long_frames}, o.crf, height, work);
