@@ -452,9 +452,9 @@ void AugmentedScene::DropPosesPastTheEnd() {
   im.smoother = LightWeightSmoother(options_.light_smoothing_s);
 }
 
-AugmentedScene::ViewSetup AugmentedScene::PrepareFrame(double dt_s, AugmentedFrame* frame) {
+AugmentedScene::ViewSetup AugmentedScene::PrepareFrame(double dt_s, AugmentedFrame* result) {
   Impl& im = *impl_;
-  AugmentedFrame& out = *frame;
+  AugmentedFrame& out = *result;
   DropPosesPastTheEnd();
   const CarState& car = car_->state();
   out.car_position = car.position;
