@@ -646,7 +646,8 @@ AugmentedFrame AugmentedScene::RenderEquirect(int width, double dt_s) {
   auto t0 = Clock::now();
   const sphere::EquirectImage& recorded = LinearPanorama(out.view_frame);
   if (recorded.empty()) throw Error(options_.video, "no frame to show can be decoded");
-  if (width <= 0) width = recorded.width;
+  // The video's own width, made even (4:2:0 video and a 2:1 frame need one).
+  if (width <= 0) width = recorded.width - recorded.width % 2;
   if (width < 2 || width % 2)
     throw Error("augmented view", "a 360° frame's width must be even, got " + std::to_string(width));
   out.image = sphere::EquirectImage(width, width / 2);

@@ -20,8 +20,8 @@ constexpr float kCoverageSeen = 1e-3f, kShadowSeen = 2e-3f;
 // centres at +0.5, clamped at the image's edge.
 void Sample(const std::vector<float>& image, int width, int height, int channels, double x, double y, float* out) {
   const double u = std::clamp(x - 0.5, 0.0, width - 1.0), v = std::clamp(y - 0.5, 0.0, height - 1.0);
-  const int x0 = std::min(static_cast<int>(u), width - 2 < 0 ? 0 : width - 2);
-  const int y0 = std::min(static_cast<int>(v), height - 2 < 0 ? 0 : height - 2);
+  const int x0 = std::min(static_cast<int>(u), std::max(width - 2, 0));
+  const int y0 = std::min(static_cast<int>(v), std::max(height - 2, 0));
   const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
   const auto fx = static_cast<float>(u - x0), fy = static_cast<float>(v - y0);
   const auto at = [&](int xx, int yy, int c) {
