@@ -8,9 +8,12 @@ namespace odvr::app {
 
 struct CarRendering {
   int lighting_levels = 4;
-  // Light frames are area-resampled to this width before the lighting transform: level 3's
-  // SRBFs are ~7° apart, and the area mean keeps a peak's energy (the sun stays a peak).
-  int lighting_width = 256;
+  // Light frames wider than this are area-resampled to it before the lighting builder, which
+  // finds the peaks there and box-averages the rest to the transform's grid in the same pass. An
+  // HDR sun keeps its energy at any width, but an LDR one is only a clipped blob: at 1024 wide a
+  // pixel is 0.35°, under the sun's disc, while at 256 a one-pixel clipped sun averages with its
+  // ring below the clip level and the car loses its shadow.
+  int lighting_width = 1024;
   int voxel_resolution = 64;
   int cone_rings = 1;
   int supersample = 1;   // render::RenderOptions::supersample (adaptive, its default contrast)

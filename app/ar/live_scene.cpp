@@ -182,8 +182,9 @@ LiveFrame LiveScene::Render(int width, int height, const AugmentedView& view) {
     // Lighting: the new panorama's SG model, in the world's frame (the rig's, unturned).
     if (im.renderer) {
       t0 = Clock::now();
-      cv::Mat small;
-      cv::resize(lin, small, cv::Size(options_.lighting_width, options_.lighting_width / 2), 0, 0, cv::INTER_AREA);
+      cv::Mat small = lin;
+      if (lin.cols > options_.lighting_width)
+        cv::resize(lin, small, cv::Size(options_.lighting_width, options_.lighting_width / 2), 0, 0, cv::INTER_AREA);
       sphere::EquirectImage e(small.cols, small.rows);
       std::memcpy(e.rgb.data(), small.ptr<float>(), e.rgb.size() * sizeof(float));
       im.light = im.builder->Build(e);

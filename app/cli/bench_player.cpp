@@ -10,6 +10,7 @@
 #include <iterator>
 #include <sstream>
 
+#include "app/ar/car_rendering.h"
 #include "app/cli/bench_common.h"
 #include "app/cli/commands.h"
 #include "app/player/live_player.h"
@@ -75,7 +76,8 @@ int RunBenchPlayer(const BenchPlayerOptions& b) {
      << "Made by `odvr bench player --size " << b.size << " --frames " << b.frames << " --drive " << b.drive
      << "`: the demo (`media/demo/street.mp4`, its `trajectory_gt.json` and `car.glb`) in augmented mode, "
      << "headless, the car driven by the script; the first frame (shader compilation) is left out. Lighting: "
-     << b.levels << " HEALPix levels from the frame area-resampled to 256×128; visibility: " << b.voxels
+     << b.levels << " HEALPix levels from the frame, at most " << CarRendering{}.lighting_width
+     << " wide (its peaks found there, the rest box-averaged to the transform's grid); visibility: " << b.voxels
      << "³ voxels, 7 cones per broad lobe.\n\n"
      << "Machine: " << BenchMachineDescription() << "; OpenGL renderer: " << gl_renderer
      << (gl::IsSoftwareRenderer(gl_renderer)
@@ -160,8 +162,8 @@ int RunBenchLive(const BenchPlayerOptions& b, const std::string& gl_renderer) {
      << "config/demo_rig.json` headless, the demo's six 300×400 fisheye cameras replayed live at 25 fps on "
         "capture threads (`replay:`, the rig's `image_dir` folders), stitched on the CPU to 1024×512 and relit "
         "from every new stitched frame ("
-     << b.levels << " HEALPix levels from 256×128), the car standing 6 m ahead of the rig (" << b.voxels
-     << "³ voxels); medians over " << b.frames
+     << b.levels << " HEALPix levels from the stitched frame at " << CarRendering{}.lighting_width
+     << " wide), the car standing 6 m ahead of the rig (" << b.voxels << "³ voxels); medians over " << b.frames
      << " frames, the first (shader compilation) left out. Machine: " << BenchMachineDescription() << " (load average "
      << load << " at the start: the cores may have been shared); OpenGL renderer: " << gl_renderer << ".\n\n| stage |";
   for (const auto& c : columns) md << " " << c.size << " ms |";

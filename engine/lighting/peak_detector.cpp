@@ -444,9 +444,27 @@ double Elongation(const std::vector<int>& pixels, const glm::dvec3& axis, int w,
   return std::sqrt(l1 / l2);
 }
 
-// Whether a clipped component of an LDR frame can be a sun (PeakDetectorOptions' ldr_* gates).
-bool CouldBeAnLdrSun(const std::vector<int>& pixels, const glm::vec3& ring, int w, int h,
-                     const PeakDetectorOptions& options) {
+// ∫ L(ω) max(0, ω·axis) dω over an equirect image: the irradiance on a surface facing `axis`.
+glm::dvec3 Irradiance(const sphere::EquirectImage& image, const glm::dvec3& axis) {
+  const int w = image.width, h = image.height;
+  const PixelDirections& direction = PixelDirections::Of(w, h);
+  glm::dvec3 sum(0);
+  for (int row = 0; row < h; ++row) {
+    glm::dvec3 sum_row(0);
+    for (int col = 0; col < w; ++col) {
+      const double cosine = glm::dot(direction(row * w + col), axis);
+      if (cosine <= 0) continue;
+      const float* v = image.at(col, row);
+      sum_row += cosine * glm::dvec3(v[0], v[1], v[2]);
+    }
+    sum += sphere::EquirectPixelSolidAngle(row, w, h) * sum_row;
+  }
+  return sum;
+}
+
+// Whether a clipped component of an LDR frame has a sun's place and shape (PeakDetectorOptions'
+// ldr_* gates but the ring's): above the horizon, compact and round.
+bool CouldBeAnLdrSunByShape(const std::vector<int>& pixels, int w, int h, const PeakDetectorOptions& options) {
   const PixelDirections& direction = PixelDirections::Of(w, h);
   glm::dvec3 sum(0);
   for (int p : pixels) sum += direction(p);
@@ -455,10 +473,53 @@ bool CouldBeAnLdrSun(const std::vector<int>& pixels, const glm::vec3& ring, int 
   if (axis.y < std::sin(options.ldr_min_elevation_deg * kPi / 180)) return false;  // below the horizon
   const double cos_radius = std::cos(options.ldr_max_sun_radius_deg * kPi / 180);
   for (int p : pixels)
-    if (glm::dot(direction(p), axis) < cos_radius) return false;  // not compact
+    if (glm::dot(direction(p), axis) < cos_radius) return false;                             // not compact
+  return pixels.size() < 6 || Elongation(pixels, axis, w, h) <= options.ldr_max_elongation;  // round
+}
+
+// The mean luminance within `radius_deg` of a component's centre (by solid angle, its own pixels
+// included): how much an LDR frame's clipped component glows. The sun brightens the sky around it
+// (the circumsolar glow, a camera's bloom); a clipped highlight on a lamp post or a sign sits in a
+// dark surround.
+double GlowAround(const std::vector<int>& pixels, const sphere::EquirectImage& frame, double radius_deg) {
+  const int w = frame.width, h = frame.height;
+  const PixelDirections& direction = PixelDirections::Of(w, h);
+  glm::dvec3 sum(0);
+  for (int p : pixels) sum += direction(p);
+  if (glm::length(sum) < 1e-12) return 0;
+  const glm::dvec3 axis = glm::normalize(sum);
+  const double radius = radius_deg * kPi / 180, cos_radius = std::cos(radius);
+  const double lat = std::asin(std::clamp(axis.y, -1.0, 1.0));
+  const int row_centre = static_cast<int>((kPi / 2 - lat) / kPi * h);
+  const int half_rows = static_cast<int>(std::ceil(radius / kPi * h)) + 1;
+  // Columns: a cap of angular radius r at latitude φ spans asin(sin r / cos φ) of longitude (the
+  // whole row once it reaches a pole).
+  const double cos_edge = std::cos(std::min(kPi / 2, std::abs(lat) + radius));
+  const bool whole_rows = std::sin(radius) >= cos_edge;
+  const int half_cols =
+      whole_rows ? w : static_cast<int>(std::ceil(std::asin(std::sin(radius) / cos_edge) / (2 * kPi) * w)) + 1;
+  const double lon = std::atan2(-axis.z, axis.x);
+  const int col_centre = static_cast<int>((1 - lon / kPi) * w / 2);
+  double weighted = 0, area = 0;
+  for (int row = std::max(0, row_centre - half_rows); row <= std::min(h - 1, row_centre + half_rows); ++row) {
+    const double da = sphere::EquirectPixelSolidAngle(row, w, h);
+    for (int k = whole_rows ? 0 : -half_cols; k < (whole_rows ? w : half_cols + 1); ++k) {
+      const int col = whole_rows ? k : ((col_centre + k) % w + w) % w;
+      const int p = row * w + col;
+      if (glm::dot(direction(p), axis) < cos_radius) continue;
+      weighted += Luminance(frame.at(col, row)) * da;
+      area += da;
+    }
+  }
+  return area > 0 ? weighted / area : 0;
+}
+
+// Whether a clipped component of an LDR frame can be a sun: its shape, and standing out from its ring.
+bool CouldBeAnLdrSun(const std::vector<int>& pixels, const glm::vec3& ring, int w, int h,
+                     const PeakDetectorOptions& options) {
   const float ring_level[3] = {ring.x, ring.y, ring.z};
   if (Luminance(ring_level) > options.ldr_max_ring_level * options.ldr_clip_level) return false;  // blown-out area
-  return pixels.size() < 6 || Elongation(pixels, axis, w, h) <= options.ldr_max_elongation;       // round
+  return CouldBeAnLdrSunByShape(pixels, w, h, options);
 }
 
 // residue). Without `keep_residue` the residue is left empty unless the frame is LDR.
@@ -512,6 +573,10 @@ void PeakDetectorOptions::Check() const {
     throw Error("LDR sun radius", "must be in (0, 90) degrees");
   if (!(ldr_max_elongation >= 1)) throw Error("LDR sun elongation", "must be at least 1");
   if (!(ldr_max_ring_level > 0 && ldr_max_ring_level <= 1)) throw Error("LDR sun ring level", "must be in (0, 1]");
+  if (ldr_max_suns < 0) throw Error("LDR suns", "must be >= 0");
+  if (!(ldr_glow_radius_deg > 0 && ldr_glow_radius_deg < 90))
+    throw Error("LDR glow radius", "must be in (0, 90) degrees");
+  if (!(ldr_min_glow_margin >= 1)) throw Error("LDR glow margin", "must be at least 1");
   if (!(ldr_min_elevation_deg >= -90 && ldr_min_elevation_deg < 90))
     throw Error("LDR sun elevation", "must be in [-90, 90) degrees");
 }
@@ -601,18 +666,29 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
   if (components.empty()) return finish();
 
   // Only the brightest components are worth a peak: rank by rough energy first, so a noisy
-  // frame with thousands of bright specks costs no more than a clean one.
+  // frame with thousands of bright specks costs no more than a clean one. In an LDR frame a
+  // component below the horizon or spread wide cannot be a sun (whatever its ring): it is left out
+  // before the ranking, or a street's clipped lane markings and kerbs crowd out a one-pixel sun.
   std::vector<std::pair<double, std::size_t>> rough;
   for (std::size_t i = 0; i < components.size(); ++i) {
     if (components[i].empty()) continue;
     double e = 0;
-    for (int p : components[i])
-      e += Luminance(&frame.rgb[3 * static_cast<std::size_t>(p)]) * da[static_cast<std::size_t>(p / w)];
+    if (out.ldr) {
+      // Clipped pixels all read 1, so an LDR component ranks by its glow instead of its energy.
+      if (!CouldBeAnLdrSunByShape(components[i], w, h, options)) continue;
+      e = GlowAround(components[i], frame, options.ldr_glow_radius_deg);
+    } else {
+      for (int p : components[i])
+        e += Luminance(&frame.rgb[3 * static_cast<std::size_t>(p)]) * da[static_cast<std::size_t>(p / w)];
+    }
     rough.emplace_back(e, i);
   }
   std::sort(rough.rbegin(), rough.rend());
-  if (rough.size() > static_cast<std::size_t>(2 * options.max_peaks + 2))
-    rough.resize(static_cast<std::size_t>(2 * options.max_peaks + 2));
+  // The sun is one of a kind: where the clipped candidates glow alike (the crossings of a white
+  // room's grid lines, a row of windows) none of them is taken for it.
+  if (out.ldr && rough.size() >= 2 && !(rough[0].first >= options.ldr_min_glow_margin * rough[1].first)) rough.clear();
+  const int most = out.ldr ? std::min(options.max_peaks, options.ldr_max_suns) : options.max_peaks;
+  if (rough.size() > static_cast<std::size_t>(2 * most + 2)) rough.resize(static_cast<std::size_t>(2 * most + 2));
   std::vector<std::vector<int>> ranked;
   for (const auto& [e, i] : rough) ranked.push_back(std::move(components[i]));
   components = std::move(ranked);
@@ -731,15 +807,18 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
     c.pixels = std::move(pixels);
     candidates.push_back(std::move(c));
   }
-  // The brightest first; keep max_peaks.
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
-    return a.peak.energy.x + a.peak.energy.y + a.peak.energy.z > b.peak.energy.x + b.peak.energy.y + b.peak.energy.z;
-  });
-  if (static_cast<int>(candidates.size()) > options.max_peaks)
-    candidates.resize(static_cast<std::size_t>(options.max_peaks));
+  // The brightest first (an LDR frame's: the most glowing, the ranking's order); keep max_peaks.
+  if (!out.ldr)
+    std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+      return a.peak.energy.x + a.peak.energy.y + a.peak.energy.z > b.peak.energy.x + b.peak.energy.y + b.peak.energy.z;
+    });
+  if (static_cast<int>(candidates.size()) > most) candidates.resize(static_cast<std::size_t>(most));
 
-  // An LDR sun's energy is judged against the residue, so it is kept then.
-  keep_residue = keep_residue || out.ldr;
+  // An LDR sun's energy is judged against the sky's irradiance: from the coarse grid when there is
+  // one (the residue box-averaged: the cosine varies by a cell's width in it), else from the
+  // residue, kept then. A frame-sized copy costs its page faults on every frame (more than the
+  // whole detection at 1024 wide), the coarse grid is there anyway.
+  keep_residue = keep_residue || (out.ldr && !coarse);
   std::vector<std::pair<int, glm::vec3>> taken;
   if (coarse && !keep_residue)
     for (const auto& c : candidates)
@@ -769,15 +848,7 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
       // Clipped: scale the peak so its irradiance on a surface facing it is the prior ratio
       // times the sky's (the residue's) irradiance on that surface.
       const glm::dvec3 axis = c.peak.sgs.front().axis;
-      glm::dvec3 sky(0);
-      for (int row = 0; row < h; ++row)
-        for (int col = 0; col < w; ++col) {
-          const double cosine = glm::dot(sphere::EquirectPixelDirection(col, row, w, h), axis);
-          if (cosine <= 0) continue;
-          const float* v = out.residue.at(col, row);
-          sky += cosine * da[static_cast<std::size_t>(row)] * glm::dvec3(v[0], v[1], v[2]);
-        }
-      const glm::dvec3 target = options.ldr_sun_to_sky_ratio * sky;
+      const glm::dvec3 target = options.ldr_sun_to_sky_ratio * Irradiance(keep_residue ? out.residue : *coarse, axis);
       glm::dvec3 current(0);
       for (const auto& g : c.peak.sgs) current += glm::dvec3(g.amplitude) * Integral(Sg{g.axis, g.lambda, 1});
       for (auto& g : c.peak.sgs)

@@ -25,7 +25,11 @@
 // and standing out from its ring (the ring under `ldr_max_ring_level` × the clip level, not the
 // clipped core of a larger blown-out area). Its energy is then estimated from a sky-to-sun prior: the sun's irradiance
 // on a surface facing it is `ldr_sun_to_sky_ratio` (default 4, a clear day's direct-to-diffuse ratio at mid elevations)
-// times the irradiance the rest of the sky gives that surface.
+// times the irradiance the rest of the sky gives that surface. One sun at most (`ldr_max_suns`):
+// the candidate whose surround glows most (`ldr_glow_radius_deg`), as the sky does round the sun
+// and not round a clipped highlight on a post; clipped values alone cannot rank them. A sun is one
+// of a kind: unless the first glows `ldr_min_glow_margin` times more than the next (a white room's
+// grid-line crossings glow alike), no candidate is taken.
 #include <vector>
 
 #include "engine/lighting/sg_lighting.h"
@@ -51,6 +55,12 @@ struct PeakDetectorOptions {
   double ldr_max_sun_radius_deg = 25;  // the sun's disc with its bloom and flare, clipped
   double ldr_max_elongation = 2.0;     // principal-axis ratio: a disc's is 1, a line's many
   double ldr_max_ring_level = 0.9;     // the ring's luminance at most this × the clip level
+  // An LDR frame has one sun: a clipped facade, sign or its reflection given the sky prior's
+  // energy would double the light. Among the candidates the one that glows most is taken.
+  int ldr_max_suns = 1;
+  double ldr_glow_radius_deg = 5;  // the surround whose mean luminance ranks LDR candidates
+  // ... and it must glow this many times more than the next candidate, or no sun is taken.
+  double ldr_min_glow_margin = 1.5;
   // Side of the blocks whose brightest pixel the first pass records; only blocks with a bright
   // pixel are labelled. Any size gives the same components.
   int candidate_block = 32;

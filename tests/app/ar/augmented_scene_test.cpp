@@ -306,6 +306,29 @@ TEST(AugmentedSceneGL, CarOffThePathIsLitByTheNearestFrames) {
   for (float v : f.image.rgb) ASSERT_TRUE(std::isfinite(v));
 }
 
+// The demo's video is 8-bit: its sun is one clipped pixel at 1024 wide. The players light the car
+// from frames at CarRendering's lighting width, where that pixel is still clipped (averaged to 256
+// wide with its ring it was not, and the car cast no sun shadow), and the frame's one sun is where
+// Blender put it (media/demo/scene.json), seen from the rig of that frame (trajectory_gt.json).
+TEST(AugmentedSceneGL, TheDemoVideosClippedSunIsTheCarsSun) {
+  gl::HeadlessContext context;
+  AugmentedOptions o = DemoOptions();
+  o.lighting_width = CarRendering{}.lighting_width;
+  o.lighting_levels = CarRendering{}.lighting_levels;
+  AugmentedScene scene(o);
+  std::ifstream scene_file(kDemo / "scene.json"), trajectory_file(kDemo / "trajectory_gt.json");
+  const auto sun_json = nlohmann::json::parse(scene_file)["sun"]["direction_world"];
+  const auto pose = nlohmann::json::parse(trajectory_file)["frames"][2]["world_from_rig"];
+  const glm::dvec3 sun_world(sun_json[0].get<double>(), sun_json[1].get<double>(), sun_json[2].get<double>());
+  glm::dvec3 sun_rig(0);  // Rᵀ d, Blender's Z-up rig frame
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) sun_rig[i] += pose[j][i].get<double>() * sun_world[j];
+  const glm::dvec3 sun(sun_rig.x, sun_rig.z, -sun_rig.y);  // odvr's Y-up frame
+  const lighting::SgLighting& light = scene.FrameLighting(2);
+  ASSERT_EQ(light.peaks.size(), 1u);
+  EXPECT_LT(std::acos(std::min(1.0, glm::dot(glm::normalize(light.peaks[0].axis), sun))) * 180 / 3.14159265358979, 0.5);
+}
+
 // --supersample 2 (RenderOptions::supersample, adaptive): the car's light is the same, its
 // outline and highlights are averaged over the pixel, and more samples than pixels are shaded but
 // fewer than four per pixel. 5 per axis is a usage error.
