@@ -49,6 +49,17 @@ def parse_args():
                    help="committed panorama WxH (2x2 area mean of the rendered one, or equal to it)")
     p.add_argument("--spp", type=int, default=8, help="samples per pixel, rig images")
     p.add_argument("--pano-spp", type=int, default=6, help="samples per pixel, rendered panoramas")
+    p.add_argument("--adaptive-threshold", type=float, default=0.02,
+                   help="Cycles' adaptive sampling noise threshold (lower: more samples where noisy)")
+    p.add_argument("--clamp-indirect", type=float, default=3.0,
+                   help="Cycles' indirect sample clamp, in the scene's linear radiance (a sunlit grey road is ~0.2)")
+    p.add_argument("--rig-frames", type=int, default=-1,
+                   help="render the six fisheyes and the committed pano/ for the first N frames only "
+                        "(default: every frame; 0: a panorama clip alone)")
+    p.add_argument("--video-crf", type=int, default=26, help="x264 constant rate factor of street.mp4")
+    p.add_argument("--resume", action="store_true",
+                   help="keep OUT/_work and skip the frames already rendered there (an interrupted render "
+                        "goes on where it stopped; the scene is rebuilt identically from --seed)")
     p.add_argument("--diffuse-bounces", type=int, default=0,
                    help="indirect diffuse bounces (0: shadows lit by the sky only; each bounce ~doubles the time)")
     p.add_argument("--hdr-frames", default="", help="comma-separated frames with an EXR (default: 3 spread)")
@@ -70,10 +81,12 @@ def parse_args():
     a.p_w, a.p_h = size(a.pano_size)
     if (a.pr_w, a.pr_h) != (a.p_w, a.p_h) and (a.pr_w, a.pr_h) != (2 * a.p_w, 2 * a.p_h):
         p.error("--pano-size must equal --pano-render-size or be half of it")
+    if a.rig_frames < 0 or a.rig_frames > a.frames:
+        a.rig_frames = a.frames
     if a.hdr_frames:
-        a.hdr = sorted({int(x) for x in a.hdr_frames.split(",")})
+        a.hdr = sorted({int(x) for x in a.hdr_frames.split(",") if 0 <= int(x) < a.frames})
     else:
-        n = a.frames
+        n = a.rig_frames if a.rig_frames > 0 else a.frames
         a.hdr = sorted({0, n // 2}) if n > 1 else [0]
     return a
 
@@ -1468,7 +1481,7 @@ def setup_cycles(scene, args):
     cy.device = "CPU"
     cy.use_denoising = False
     cy.use_adaptive_sampling = True
-    cy.adaptive_threshold = 0.02
+    cy.adaptive_threshold = args.adaptive_threshold
     cy.max_bounces = 3
     cy.diffuse_bounces = args.diffuse_bounces
     cy.glossy_bounces = 1
@@ -1476,7 +1489,7 @@ def setup_cycles(scene, args):
     cy.transparent_max_bounces = 4
     cy.volume_bounces = 0
     cy.sample_clamp_direct = 0.0
-    cy.sample_clamp_indirect = 3.0
+    cy.sample_clamp_indirect = args.clamp_indirect
     cy.blur_glossy = 1.0
     cy.caustics_reflective = False
     cy.caustics_refractive = False
@@ -1618,6 +1631,42 @@ def centroid(img, u, v, r):
 # Main
 
 
+def render_frame(scene, args, rig, cams, pano, f, out, tmpdir, v_dir):
+    """Renders frame f: the six fisheyes (for the first --rig-frames frames), the panorama at the
+    render size (the clip's frame), its committed 2x2 mean (rig frames) and EXR (--hdr-frames)."""
+    i, T = f["index"], f["T"]
+    t0 = time.time()
+    if i < args.rig_frames:
+        scene.render.resolution_x, scene.render.resolution_y = args.rig_w, args.rig_h
+        scene.cycles.samples = args.spp
+        s = scene.render.image_settings
+        for c, ob in zip(rig["cameras"], cams):
+            ob.matrix_world = T @ rig_matrix(c) @ OPENCV_TO_BLENDER_CAM
+            scene.camera = ob
+            scene.cycles.seed = render_frame_seed(args.seed, i, c["id"])
+            scene.view_settings.exposure = math.log2(c["gain"])
+            s.file_format, s.quality, s.color_mode = "JPEG", args.jpeg_quality, "RGB"
+            scene.render.filepath = os.path.join(out, c["image_dir"], f"{i:06d}.jpg")
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+        scene.view_settings.exposure = 0.0
+    t1 = time.time()
+    pano.matrix_world = T @ RIG_TO_PANO_CAM
+    scene.camera = pano
+    scene.render.resolution_x, scene.render.resolution_y = args.pr_w, args.pr_h
+    scene.cycles.samples = args.pano_spp
+    scene.cycles.seed = render_frame_seed(args.seed, i, 99)
+    full = render_to_array(scene, os.path.join(tmpdir, "pano_full.exr"))
+    save_array(scene, full, os.path.join(v_dir, f"{i:06d}.png"), "PNG")
+    halve = (args.pr_w, args.pr_h) != (args.p_w, args.p_h)
+    small = full.reshape(args.p_h, 2, args.p_w, 2, 3).mean(axis=(1, 3)) if halve else full
+    if i < args.rig_frames:
+        save_array(scene, small, os.path.join(out, "pano", f"{i:06d}.png"), "PNG")
+    if i in args.hdr:
+        save_array(scene, small, os.path.join(out, "pano_hdr", f"{i:06d}.exr"), "EXR")
+    t2 = time.time()
+    return {"frame": i, "rig_s": round(t1 - t0, 2), "pano_s": round(t2 - t1, 2), "total_s": round(t2 - t0, 2)}
+
+
 def main():
     args = parse_args()
     out = os.path.abspath(args.out)
@@ -1713,55 +1762,38 @@ def main():
 
     # Cameras and output folders.
     cams, pano = make_cameras(scene, rig, coll)
-    for c in rig["cameras"]:
+    for c in rig["cameras"] if args.rig_frames > 0 else []:
         os.makedirs(os.path.join(out, c["image_dir"]), exist_ok=True)
-    for d_ in ("pano", "pano_hdr"):
+    for d_ in ("pano", "pano_hdr") if args.rig_frames > 0 else ("pano_hdr",):
         os.makedirs(os.path.join(out, d_), exist_ok=True)
     v_dir = os.path.join(tmpdir, "pano_render")
     os.makedirs(v_dir, exist_ok=True)
     write_json(os.path.join(out, "rig.json"), rig)
     write_trajectory(out, frames, args.fps, rig_height, lane)
 
+    # Each finished frame is recorded in _work/frames_done.json (atomically, after its files): with
+    # --resume a rerun rebuilds the same scene and renders only the frames not recorded there.
+    done_path = os.path.join(tmpdir, "frames_done.json")
+    done = {}
+    if args.resume and os.path.exists(done_path):
+        with open(done_path) as fh:
+            done = {int(k): v for k, v in json.load(fh).items()}
+        print(f"resuming: {len(done)} of {len(frames)} frames already rendered", flush=True)
     timings = []
-    halve = (args.pr_w, args.pr_h) != (args.p_w, args.p_h)
     for f in frames:
         i = f["index"]
-        T = f["T"]
-        t0 = time.time()
-        scene.render.resolution_x, scene.render.resolution_y = args.rig_w, args.rig_h
-        scene.cycles.samples = args.spp
-        s = scene.render.image_settings
-        for c, ob in zip(rig["cameras"], cams):
-            ob.matrix_world = T @ rig_matrix(c) @ OPENCV_TO_BLENDER_CAM
-            scene.camera = ob
-            scene.cycles.seed = render_frame_seed(args.seed, i, c["id"])
-            scene.view_settings.exposure = math.log2(c["gain"])
-            s.file_format, s.quality, s.color_mode = "JPEG", args.jpeg_quality, "RGB"
-            scene.render.filepath = os.path.join(out, c["image_dir"], f"{i:06d}.jpg")
-            bpy.ops.render.render(write_still=True, scene=scene.name)
-        scene.view_settings.exposure = 0.0
-        t1 = time.time()
-        pano.matrix_world = T @ RIG_TO_PANO_CAM
-        scene.camera = pano
-        scene.render.resolution_x, scene.render.resolution_y = args.pr_w, args.pr_h
-        scene.cycles.samples = args.pano_spp
-        scene.cycles.seed = render_frame_seed(args.seed, i, 99)
-        full = render_to_array(scene, os.path.join(tmpdir, "pano_full.exr"))
-        save_array(scene, full, os.path.join(v_dir, f"{i:06d}.png"), "PNG")
-        small = full.reshape(args.p_h, 2, args.p_w, 2, 3).mean(axis=(1, 3)) if halve else full
-        save_array(scene, small, os.path.join(out, "pano", f"{i:06d}.png"), "PNG")
-        if i in args.hdr:
-            save_array(scene, small, os.path.join(out, "pano_hdr", f"{i:06d}.exr"), "EXR")
-        t2 = time.time()
-        timings.append({"frame": i, "rig_s": round(t1 - t0, 2), "pano_s": round(t2 - t1, 2),
-                        "total_s": round(t2 - t0, 2)})
-        print(f"frame {i}: rig {t1 - t0:.1f} s, pano {t2 - t1:.1f} s", flush=True)
+        if i not in done:
+            done[i] = render_frame(scene, args, rig, cams, pano, f, out, tmpdir, v_dir)
+            write_json(done_path, {str(k): v for k, v in sorted(done.items())})
+            t = done[i]
+            print(f"frame {i}: rig {t['rig_s']:.1f} s, pano {t['pano_s']:.1f} s", flush=True)
+        timings.append(done[i])
 
     video = None
     if not args.no_video:
         video = os.path.join(out, "street.mp4")
         cmd = ["ffmpeg", "-y", "-loglevel", "error", "-framerate", str(args.fps), "-i",
-               os.path.join(v_dir, "%06d.png"), "-c:v", "libx264", "-preset", "slow", "-crf", "26",
+               os.path.join(v_dir, "%06d.png"), "-c:v", "libx264", "-preset", "slow", "-crf", str(args.video_crf),
                "-pix_fmt", "yuv420p", "-movflags", "+faststart", video]
         subprocess.run(cmd, check=True)
 
@@ -1769,12 +1801,14 @@ def main():
     checks = {"hdr": []}
     for i in args.hdr:
         exr = read_exr(os.path.join(out, "pano_hdr", f"{i:06d}.exr"))
-        png = read_png(os.path.join(out, "pano", f"{i:06d}.png"))
-        diff = np.abs(np.round(srgb_encode(exr) * 255) - np.round(png * 255)).max()
+        png_path = os.path.join(out, "pano", f"{i:06d}.png")
+        diff = None
+        if os.path.exists(png_path):
+            diff = float(np.abs(np.round(srgb_encode(exr) * 255) - np.round(read_png(png_path) * 255)).max())
         e_in = sun_energy(exr, frames[i]["T"], d, sun.angle)
         checks["hdr"].append({"frame": i, "exr_max": float(exr.max()),
                               "exr_pixel_type": "half (ZIP)" if exr.max() < 65000.0 else "float32 (PXR24)",
-                              "png_vs_srgb_exr_max_abs_diff_8bit": float(diff),
+                              "png_vs_srgb_exr_max_abs_diff_8bit": diff,
                               "E_sun_in_exr_rgb": rounded(e_in.tolist(), 4),
                               "exr_over_lamp": round(float(lum @ e_in) / float(lum @ e_scaled), 4)})
     sizes = {}
@@ -1796,12 +1830,12 @@ def main():
                 "sun": sun_info, "car": car_info}
     scene_js.update(street)
     scene_js["render"] = {"engine": "Cycles CPU (Blender %s)" % bpy.app.version_string, "spp": args.spp,
-                          "pano_spp": args.pano_spp, "adaptive_sampling_threshold": 0.02, "max_bounces": 3,
-                          "diffuse_bounces": args.diffuse_bounces, "glossy_bounces": 1, "transmission_bounces": 1, "clamp_indirect": 3.0,
+                          "pano_spp": args.pano_spp, "adaptive_sampling_threshold": args.adaptive_threshold, "max_bounces": 3,
+                          "diffuse_bounces": args.diffuse_bounces, "glossy_bounces": 1, "transmission_bounces": 1, "clamp_indirect": args.clamp_indirect,
                           "filter": "Blackman-Harris 1.5 px", "denoising": False, "view_transform": "Standard",
                           "exposure": 0.0, "dither": 0.0, "rig_size": [args.rig_w, args.rig_h],
                           "pano_render_size": [args.pr_w, args.pr_h], "pano_size": [args.p_w, args.p_h],
-                          "pano_downsample": "2x2 mean of the linear render" if halve else "none",
+                          "pano_downsample": "2x2 mean of the linear render" if (args.pr_w, args.pr_h) != (args.p_w, args.p_h) else "none",
                           "jpeg_quality": args.jpeg_quality, "hdr_frames": args.hdr,
                           "exr": "OpenEXR, linear scene-referred (no view transform): half float ZIP, or 32-bit "
                                  "float PXR24 where the sun disc peaks above 65000 (checks.json)"}
