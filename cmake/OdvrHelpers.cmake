@@ -1,6 +1,6 @@
 # Warnings for our own targets only; -Werror is switched on by CI (ODVR_WERROR).
 function(odvr_target_warnings target)
-  target_compile_options(${target} PRIVATE -Wall -Wextra -Wnon-virtual-dtor -Wno-missing-field-initializers)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wshadow -Wnon-virtual-dtor -Wno-missing-field-initializers)
   if(ODVR_WERROR)
     target_compile_options(${target} PRIVATE -Werror)
   endif()

@@ -1155,11 +1155,11 @@ class Reconstructor {
         const Eigen::Vector3d in_cam = CamPose(geometry_, world_from_rig_[o.frame], o.camera) * p.x;
         Eigen::Vector2d pixel;
         if (!cam.model.Project(in_cam, &pixel)) continue;
-        Eigen::Vector2d d = pixel - o.pixel;
+        Eigen::Vector2d residual = pixel - o.pixel;
         // An equirect image's columns wrap: an observation at the seam may project onto the other side.
         if (cam.model.type() == capture::CameraModelType::kEquirectangular)
-          d.x() = std::remainder(d.x(), static_cast<double>(cam.model.width()));
-        const double e2 = d.squaredNorm();
+          residual.x() = std::remainder(residual.x(), static_cast<double>(cam.model.width()));
+        const double e2 = residual.squaredNorm();
         psq += e2;
         sq += e2;
         ++n;

@@ -62,7 +62,7 @@ void TripleProductRenderer::Impl::ShadeOnCpu(const Frame& fr, const detail::GBuf
                                              Tally* tally) {
   const RenderOptions& o = fr.options;
   const int w = fr.w, h = fr.h, k = fr.k, sw = fr.sw, sh = fr.sh;
-  std::vector<detail::PixelCounts>& counts = tally->counts;
+  std::vector<detail::PixelCounts>& sample_counts = tally->counts;
   detail::ReferenceInputs in;
   in.gbuffer = &g;
   in.camera = fr.shaded_camera;
@@ -76,7 +76,7 @@ void TripleProductRenderer::Impl::ShadeOnCpu(const Frame& fr, const detail::GBuf
   in.ground_centre = fr.ground_centre;
   if (k > 1) {
     RenderResult shaded;
-    detail::ShadeReference(in, &shaded, &counts);
+    detail::ShadeReference(in, &shaded, &sample_counts);
     if (fr.adaptive) {
       // Every sample is shaded here; the ones the GPU would not shade are left out of the
       // result, the counts and the coverage alike.
@@ -85,7 +85,7 @@ void TripleProductRenderer::Impl::ShadeOnCpu(const Frame& fr, const detail::GBuf
         for (int x = 0; x < sw; ++x) {
           const std::size_t s = static_cast<std::size_t>(y) * sw + x;
           if (!out->sampled_fully[static_cast<std::size_t>(y / k) * w + x / k] && (x % k != k / 2 || y % k != k / 2)) {
-            counts[s] = {};
+            sample_counts[s] = {};
             shaded.car_alpha[s] = 0;
           }
         }
@@ -98,15 +98,15 @@ void TripleProductRenderer::Impl::ShadeOnCpu(const Frame& fr, const detail::GBuf
   } else if (fr.half_rate) {
     // Every pixel is shaded here; the flags pick the blocks the GPU shades whole, and the other
     // blocks' pixels are filled as render_fill.comp fills them, out of the counts.
-    detail::ShadeReference(in, out, &counts);
+    detail::ShadeReference(in, out, &sample_counts);
     const std::vector<std::uint8_t> block =
         detail::FlagPixels(g, *out, 2, fr.bw, fr.bh, static_cast<float>(o.supersample_contrast), true);
     detail::FillHalfRate(block, out);
     out->sampled_fully = detail::HalfRateShaded(block, w, h);
     for (std::size_t i = 0; i < fr.pixels; ++i)
-      if (!out->sampled_fully[i]) counts[i] = {};
+      if (!out->sampled_fully[i]) sample_counts[i] = {};
   } else {
-    detail::ShadeReference(in, out, &counts);
+    detail::ShadeReference(in, out, &sample_counts);
   }
 }
 

@@ -726,19 +726,19 @@ void TripleProductRenderer::Impl::SumCounts(const Frame& fr, const Tally& tally,
   if (tally.gpu_sums) {
     sums = *tally.gpu_sums;
   } else {
-    const std::vector<detail::PixelCounts>& counts = tally.counts;
+    const std::vector<detail::PixelCounts>& sample_counts = tally.counts;
     // The car's coverage per shaded sample: the output's own when not supersampled.
     const std::vector<float>& sample_alpha = fr.k > 1 ? tally.sample_alpha : out->car_alpha;
     for (std::size_t i = 0; i < fr.samples; ++i) {
-      sums.cones_total += counts[i].cones;
-      sums.triples_total += counts[i].triples;
+      sums.cones_total += sample_counts[i].cones;
+      sums.triples_total += sample_counts[i].triples;
       if (sample_alpha[i] > 0) {
         ++sums.car;
-        sums.lobes += counts[i].lobes;
-        sums.cones += counts[i].cones;
-        sums.sgs += counts[i].sgs;
-        sums.triples += counts[i].triples;
-      } else if (counts[i].lobes > 0) {
+        sums.lobes += sample_counts[i].lobes;
+        sums.cones += sample_counts[i].cones;
+        sums.sgs += sample_counts[i].sgs;
+        sums.triples += sample_counts[i].triples;
+      } else if (sample_counts[i].lobes > 0) {
         ++sums.ground;
       }
     }

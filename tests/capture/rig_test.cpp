@@ -205,10 +205,10 @@ TEST(Rig, MalformedFilesFailWithOneLineNamingTheFile) {
   t.ExpectError("{\"rig_height_m\": 2}", "no cameras");
   t.ExpectError("{\"cameras\": 3}", "\"cameras\" is not an array");
   const std::string good_t = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
-  auto fish = [&](const std::string& extra, const std::string& t) {
+  auto fish = [&](const std::string& extra, const std::string& pose) {
     return "{\"model\": \"opencv_fisheye\", \"width\": 480, \"height\": 640, \"fx\": 229, \"fy\": 229, \"cx\": 239.5, "
            "\"cy\": 319.5" +
-           extra + ", \"T_rig_cam\": " + t + "}";
+           extra + ", \"T_rig_cam\": " + pose + "}";
   };
   t.ExpectError("{\"cameras\": [" + fish("", "[[1,0,0],[0,1,0],[0,0,1]]") + "]}", "not a 4x4 matrix");
   t.ExpectError("{\"cameras\": [" + fish("", "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,1,1]]") + "]}", "last row");
