@@ -56,6 +56,8 @@ def parse_args():
     p.add_argument("--rig-frames", type=int, default=-1,
                    help="render the six fisheyes and the committed pano/ for the first N frames only "
                         "(default: every frame; 0: a panorama clip alone)")
+    p.add_argument("--denoise", action="store_true",
+                   help="filter the Monte-Carlo speckle out of the panoramas' diffuse light (see 'Denoising the panoramas')")
     p.add_argument("--video-crf", type=int, default=26, help="x264 constant rate factor of street.mp4")
     p.add_argument("--resume", action="store_true",
                    help="keep OUT/_work and skip the frames already rendered there (an interrupted render "
@@ -1336,6 +1338,112 @@ def save_array(scene, arr, path, fmt, quality=90):
 
 
 # ----------------------------------------------------------------------------------------------
+# Denoising the panoramas
+#
+# Debian's Blender has no OpenImageDenoise. The visible noise of a panorama at a few samples is
+# visibility noise: shadowed facades and pavements see the sky, and the sunlit street, through a
+# narrow gap, so few of a pixel's samples find it and the pixel is speckled; more samples reduce it
+# only as their square root. In the shadowed facades of frame 1, the direct diffuse, indirect
+# diffuse and indirect glossy light carry about a third of it each. Cycles' light passes hold the
+# diffuse light as irradiance, the albedo apart (DiffCol), and the image is exactly
+#     DiffCol (DiffDir + DiffInd) + GlossCol (GlossDir + GlossInd) + TransCol (TransDir + TransInd) + Emit + Env.
+# The diffuse irradiance is filtered: an edge-avoiding a-trous filter (5x5 B3-spline taps at steps
+# 1, 2, 4, 8 px), each tap weighted by the surfaces agreeing (normals, depth) and by the
+# irradiance a 3x3 median sees there (its logarithm), so the sun's shadow edges, a factor of ~10 in
+# irradiance, stay crisp and the speckles, outvoted by the median, are averaged away. Textures
+# are untouched (the albedo multiplies the filtered irradiance back); reflections, glass and the
+# sky keep their samples.
+
+DENOISE_PASSES = ["DiffDir", "DiffInd", "DiffCol", "GlossDir", "GlossInd", "GlossCol", "TransDir", "TransInd",
+                  "TransCol", "Emit", "Env", "Normal", "Depth", "Image"]
+
+
+def setup_pass_output(scene, out_dir):
+    """Enables the light passes and a compositor File Output node writing each as a float EXR."""
+    vl = scene.view_layers[0]
+    for attr in ("diffuse_direct", "diffuse_indirect", "diffuse_color", "glossy_direct", "glossy_indirect",
+                 "glossy_color", "transmission_direct", "transmission_indirect", "transmission_color", "emit",
+                 "environment", "normal", "z"):
+        setattr(vl, "use_pass_" + attr, True)
+    scene.use_nodes = True
+    scene.render.use_compositing = True
+    nt = scene.node_tree
+    nt.nodes.clear()
+    rl = nt.nodes.new("CompositorNodeRLayers")
+    rl.scene, rl.layer = scene, vl.name
+    comp = nt.nodes.new("CompositorNodeComposite")
+    nt.links.new(rl.outputs["Image"], comp.inputs["Image"])
+    fo = nt.nodes.new("CompositorNodeOutputFile")
+    fo.base_path = out_dir
+    fo.format.file_format, fo.format.color_depth, fo.format.exr_codec = "OPEN_EXR", "32", "ZIP"
+    fo.format.color_mode = "RGB"
+    fo.file_slots.clear()
+    for name in DENOISE_PASSES:
+        fo.file_slots.new(name)
+        nt.links.new(rl.outputs[name], fo.inputs[name])
+    return fo
+
+
+def read_passes(out_dir, frame):
+    return {n: read_exr(os.path.join(out_dir, f"{n}{frame:04d}.exr")) for n in DENOISE_PASSES}
+
+
+def recombine(p, diffuse):
+    """The image from its passes, with `diffuse` (DiffDir + DiffInd) as the diffuse irradiance."""
+    return (p["DiffCol"] * diffuse + p["GlossCol"] * (p["GlossDir"] + p["GlossInd"]) +
+            p["TransCol"] * (p["TransDir"] + p["TransInd"]) + p["Emit"] + p["Env"])
+
+
+def padded(a, r):
+    """a with r more pixels on every side: wrapped in longitude (an equirect image is periodic),
+    the edge rows repeated at the poles. Views into it are the image shifted, without copies."""
+    widths = ((r, r), (0, 0)) + ((0, 0),) * (a.ndim - 2)
+    a = np.pad(a, widths, mode="edge")
+    widths = ((0, 0), (r, r)) + ((0, 0),) * (a.ndim - 2)
+    return np.pad(a, widths, mode="wrap")
+
+
+def median3(a):
+    h, w = a.shape
+    p = padded(a, 1)
+    return np.median(np.stack([p[1 + dy:1 + dy + h, 1 + dx:1 + dx + w] for dy in (-1, 0, 1) for dx in (-1, 0, 1)]),
+                     axis=0)
+
+
+def denoise_diffuse(p, sigma_log=0.5, normal_power=64.0, depth_rel=0.03):
+    """The panorama's diffuse irradiance (direct + indirect) filtered as the section above says."""
+    irr = (p["DiffDir"] + p["DiffInd"]).astype(np.float32)
+    h, w = irr.shape[:2]
+    lum = irr @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    guide = np.log(median3(lum) + 1e-4).astype(np.float32)
+    n = p["Normal"].astype(np.float32)
+    z = p["Depth"][:, :, 0].astype(np.float32)
+    surface = ((p["DiffCol"].max(axis=2) > 0) & (z < 1e5)).astype(np.float32)
+    taps = np.array([1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16], np.float32)
+    inv_sigma2 = np.float32(-0.5 / sigma_log ** 2)
+    for step in (1, 2, 4, 8):
+        r = 2 * step
+        pi, pn, pz, pg, ps = padded(irr, r), padded(n, r), padded(z, r), padded(guide, r), padded(surface, r)
+        acc = np.zeros_like(irr)
+        wsum = np.zeros_like(z)
+        for i, dy in enumerate(range(-2, 3)):
+            for j, dx in enumerate(range(-2, 3)):
+                ys, xs = slice(r + dy * step, r + dy * step + h), slice(r + dx * step, r + dx * step + w)
+                if dy == 0 and dx == 0:
+                    wt = np.full_like(z, taps[i] * taps[j])
+                else:
+                    cos_n = np.clip(np.einsum("ijk,ijk->ij", n, pn[ys, xs]), 1e-6, 1)
+                    e = normal_power * np.log(cos_n)
+                    e -= np.abs(pz[ys, xs] - z) / (depth_rel * step * max(abs(dy), abs(dx)) * z + 1e-6)
+                    e += inv_sigma2 * (pg[ys, xs] - guide) ** 2
+                    wt = taps[i] * taps[j] * np.exp(e) * ps[ys, xs]
+                acc += wt[:, :, None] * pi[ys, xs]
+                wsum += wt
+        irr = np.where(surface[:, :, None] > 0, acc / np.maximum(wsum, 1e-12)[:, :, None], irr).astype(np.float32)
+    return irr
+
+
+# ----------------------------------------------------------------------------------------------
 # Rig
 
 
@@ -1556,6 +1664,8 @@ def verify_conventions(args, rig, out, tmpdir):
         ob.location = T @ (d * dist)
         coll.objects.link(ob)
     cams, pano = make_cameras(scene, rig, coll)
+    if args.denoise:
+        setup_pass_output(scene, os.path.join(tmpdir, "passes"))
     result = {"markers": len(dirs)}
     # Panorama.
     W, H = 2048, 1024
@@ -1636,6 +1746,7 @@ def render_frame(scene, args, rig, cams, pano, f, out, tmpdir, v_dir):
     render size (the clip's frame), its committed 2x2 mean (rig frames) and EXR (--hdr-frames)."""
     i, T = f["index"], f["T"]
     t0 = time.time()
+    scene.use_nodes = False  # the pass output is the panorama's alone
     if i < args.rig_frames:
         scene.render.resolution_x, scene.render.resolution_y = args.rig_w, args.rig_h
         scene.cycles.samples = args.spp
@@ -1655,7 +1766,17 @@ def render_frame(scene, args, rig, cams, pano, f, out, tmpdir, v_dir):
     scene.render.resolution_x, scene.render.resolution_y = args.pr_w, args.pr_h
     scene.cycles.samples = args.pano_spp
     scene.cycles.seed = render_frame_seed(args.seed, i, 99)
+    scene.use_nodes = args.denoise
     full = render_to_array(scene, os.path.join(tmpdir, "pano_full.exr"))
+    extra = {}
+    if args.denoise:
+        t_d = time.time()
+        passes = read_passes(os.path.join(tmpdir, "passes"), scene.frame_current)
+        # The passes must add up to the image, or the filtered one would not be the render's.
+        exact = recombine(passes, passes["DiffDir"] + passes["DiffInd"])
+        extra["passes_vs_image_max_abs"] = round(float(np.abs(exact - passes["Image"]).max()), 6)
+        full = recombine(passes, denoise_diffuse(passes))
+        extra["denoise_s"] = round(time.time() - t_d, 2)
     save_array(scene, full, os.path.join(v_dir, f"{i:06d}.png"), "PNG")
     halve = (args.pr_w, args.pr_h) != (args.p_w, args.p_h)
     small = full.reshape(args.p_h, 2, args.p_w, 2, 3).mean(axis=(1, 3)) if halve else full
@@ -1664,7 +1785,7 @@ def render_frame(scene, args, rig, cams, pano, f, out, tmpdir, v_dir):
     if i in args.hdr:
         save_array(scene, small, os.path.join(out, "pano_hdr", f"{i:06d}.exr"), "EXR")
     t2 = time.time()
-    return {"frame": i, "rig_s": round(t1 - t0, 2), "pano_s": round(t2 - t1, 2), "total_s": round(t2 - t0, 2)}
+    return dict({"frame": i, "rig_s": round(t1 - t0, 2), "pano_s": round(t2 - t1, 2), "total_s": round(t2 - t0, 2)}, **extra)
 
 
 def main():
@@ -1762,6 +1883,8 @@ def main():
 
     # Cameras and output folders.
     cams, pano = make_cameras(scene, rig, coll)
+    if args.denoise:
+        setup_pass_output(scene, os.path.join(tmpdir, "passes"))
     for c in rig["cameras"] if args.rig_frames > 0 else []:
         os.makedirs(os.path.join(out, c["image_dir"]), exist_ok=True)
     for d_ in ("pano", "pano_hdr") if args.rig_frames > 0 else ("pano_hdr",):
@@ -1832,7 +1955,8 @@ def main():
     scene_js["render"] = {"engine": "Cycles CPU (Blender %s)" % bpy.app.version_string, "spp": args.spp,
                           "pano_spp": args.pano_spp, "adaptive_sampling_threshold": args.adaptive_threshold, "max_bounces": 3,
                           "diffuse_bounces": args.diffuse_bounces, "glossy_bounces": 1, "transmission_bounces": 1, "clamp_indirect": args.clamp_indirect,
-                          "filter": "Blackman-Harris 1.5 px", "denoising": False, "view_transform": "Standard",
+                          "filter": "Blackman-Harris 1.5 px",
+                          "denoising": "diffuse irradiance, edge-avoiding a-trous (denoise_diffuse)" if args.denoise else False, "view_transform": "Standard",
                           "exposure": 0.0, "dither": 0.0, "rig_size": [args.rig_w, args.rig_h],
                           "pano_render_size": [args.pr_w, args.pr_h], "pano_size": [args.p_w, args.p_h],
                           "pano_downsample": "2x2 mean of the linear render" if (args.pr_w, args.pr_h) != (args.p_w, args.p_h) else "none",
