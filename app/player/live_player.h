@@ -16,7 +16,9 @@ struct LivePlayOptions {
   PlayerOptions player;
   std::string rig, source;
   std::string stitch_size = "1024x512";
-  std::string stitch_device = "cpu";  // llvmpipe: CPU 10 ms, GPU 84 ms (docs/benchmarks/stitch.md)
+  // The CPU stitcher by default: on a software rasterizer the GPU path is several times slower
+  // (docs/benchmarks/stitch.md compares them).
+  std::string stitch_device = "cpu";
   bool no_car = false;
   static constexpr int kDefaultHeadlessFrames = 25;  // a live source never ends: one second's worth
 };

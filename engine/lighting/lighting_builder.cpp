@@ -42,13 +42,12 @@ SgLighting LightingBuilder::Build(const sphere::EquirectImage& frame, LightingRe
   const int factor = options_.detect_peaks ? FusedFactor(grid_w, grid_h) : 1;
   // Without peaks, a frame that box-averages evenly to the transform's finest grid goes to the
   // transform whole: it derives the same grids from it, and its box pass runs on its threads
-  // (the single-threaded resample to the peak grid took 2 of 9.6 ms at 2048 wide, 5 levels).
+  // where a resample to the peak grid first would run on one.
   const int fused = FusedFactor(grid_w, grid_h);
   const bool direct = !options_.detect_peaks && !gpu && frame_factor > 1 && fused > 1;
   // Without peaks, the GPU gets the frame resampled here, on our threads, straight to the
-  // transform's finest grid, as the peaks path hands it the detector's coarse grid: uploaded at
-  // the peak grid's 1024×512 and resampled on one thread, the 2048-wide `sg` rows took 8.5–13.3 ms
-  // on an NVIDIA H200 at one level, `sg+peaks` 1.4–1.7 ms (docs/benchmarks/h200.md).
+  // transform's finest grid, as the peaks path hands it the detector's coarse grid: uploading the
+  // peak grid and resampling it on one thread took several times the transform itself.
   const bool gpu_grid = !options_.detect_peaks && gpu && fused > 1;
   if (gpu_grid || (frame.width > options_.peak_grid_width && !direct && (factor == 1 || frame_factor == 1))) {
     small.Reshape(gpu_grid ? grid_w / fused : grid_w, gpu_grid ? grid_h / fused : grid_h);
