@@ -88,7 +88,10 @@ int RunLight(const LightOptions& o) {
     peaks["sgs"].push_back({{"direction", {p.axis.x, p.axis.y, p.axis.z}},
                             {"lambda", p.lambda},
                             {"amplitude", {p.amplitude.x, p.amplitude.y, p.amplitude.z}}});
-  if (report.peak_detection.ldr) peaks["ldr_clipped_estimate"] = true;
+  if (report.peak_detection.ldr) {
+    peaks["ldr_clipped_estimate"] = true;
+    peaks["ldr_glow"] = {report.peak_detection.ldr_glow.x, report.peak_detection.ldr_glow.y};
+  }
 
   if (o.json) {
     nlohmann::json out = {{"input", o.input},

@@ -16,8 +16,8 @@ struct LivePlayOptions {
   PlayerOptions player;
   std::string rig, source;
   std::string stitch_size = "1024x512";
-  // The CPU stitcher by default: on a software rasterizer the GPU path is several times slower
-  // (docs/benchmarks/stitch.md compares them).
+  // The CPU stitcher by default: a software rasterizer, where no GPU is, runs the GPU path as
+  // compute shaders on the same cores, with the cost of the emulation on top.
   std::string stitch_device = "cpu";
   bool no_car = false;
   static constexpr int kDefaultHeadlessFrames = 25;  // a live source never ends: one second's worth

@@ -514,12 +514,11 @@ double GlowAround(const std::vector<int>& pixels, const sphere::EquirectImage& f
   return area > 0 ? weighted / area : 0;
 }
 
-// Whether a clipped component of an LDR frame can be a sun: its shape, and standing out from its ring.
-bool CouldBeAnLdrSun(const std::vector<int>& pixels, const glm::vec3& ring, int w, int h,
-                     const PeakDetectorOptions& options) {
+// Whether a clipped LDR component of a sun's shape stands out from its ring: not the clipped core
+// of a larger blown-out area.
+bool StandsOutFromItsRing(const glm::vec3& ring, const PeakDetectorOptions& options) {
   const float ring_level[3] = {ring.x, ring.y, ring.z};
-  if (Luminance(ring_level) > options.ldr_max_ring_level * options.ldr_clip_level) return false;  // blown-out area
-  return CouldBeAnLdrSunByShape(pixels, w, h, options);
+  return Luminance(ring_level) <= options.ldr_max_ring_level * options.ldr_clip_level;
 }
 
 // residue). Without `keep_residue` the residue is left empty unless the frame is LDR.
@@ -686,7 +685,10 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
   std::sort(rough.rbegin(), rough.rend());
   // The sun is one of a kind: where the clipped candidates glow alike (the crossings of a white
   // room's grid lines, a row of windows) none of them is taken for it.
-  if (out.ldr && rough.size() >= 2 && !(rough[0].first >= options.ldr_min_glow_margin * rough[1].first)) rough.clear();
+  if (out.ldr && !rough.empty()) {
+    out.ldr_glow = {rough[0].first, rough.size() >= 2 ? rough[1].first : 0.0};
+    if (rough.size() >= 2 && !(rough[0].first >= options.ldr_min_glow_margin * rough[1].first)) rough.clear();
+  }
   const int most = out.ldr ? std::min(options.max_peaks, options.ldr_max_suns) : options.max_peaks;
   if (rough.size() > static_cast<std::size_t>(2 * most + 2)) rough.resize(static_cast<std::size_t>(2 * most + 2));
   std::vector<std::vector<int>> ranked;
@@ -740,7 +742,7 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
       for (int p : pixels) brightest = std::max(brightest, Luminance(value(p)));
       const float ring_level[3] = {c.background.x, c.background.y, c.background.z};
       if (brightest < options.min_contrast * Luminance(ring_level)) continue;
-    } else if (!CouldBeAnLdrSun(pixels, c.background, w, h, options)) {
+    } else if (!StandsOutFromItsRing(c.background, options)) {  // its shape was judged before the ranking
       continue;
     }
     std::vector<glm::dvec3> excess(pixels.size());

@@ -30,6 +30,7 @@
 // and not round a clipped highlight on a post; clipped values alone cannot rank them. A sun is one
 // of a kind: unless the first glows `ldr_min_glow_margin` times more than the next (a white room's
 // grid-line crossings glow alike), no candidate is taken.
+#include <glm/vec2.hpp>
 #include <vector>
 
 #include "engine/lighting/sg_lighting.h"
@@ -79,6 +80,9 @@ struct PeakDetection {
   sphere::EquirectImage residue;  // the frame with the peaks taken out
   double threshold = 0;
   bool ldr = false;
+  // LDR: the glow of the two most glowing clipped candidates of a sun's shape (0: none), whose
+  // ratio decided whether the first is the sun (PeakDetectorOptions::ldr_min_glow_margin).
+  glm::dvec2 ldr_glow{0};
   double ms = 0;
   // From DetectPeaksToCoarseGrid only: the residue box-averaged, bit for bit
   // sphere::DownsampleBox(residue, coarse_factor), summed in the detector's one pass over the

@@ -523,6 +523,7 @@ TEST(PeakDetector, AnLdrFrameHasOneSunTheOneWhoseSkyGlows) {
   const PeakDetection d = DetectPeaks(frame);
   ASSERT_TRUE(d.ldr);
   ASSERT_EQ(d.peaks.size(), 1u) << "one sun, not a speck each";
+  EXPECT_GE(d.ldr_glow.x, PeakDetectorOptions{}.ldr_min_glow_margin * d.ldr_glow.y) << "the sun's sky glows";
   EXPECT_TRUE(d.peaks[0].estimated_from_clipped_ldr);
   EXPECT_LT(AngleDeg(PeakAxis(d.peaks[0]), sun), 0.5);
   // With more suns allowed the specks come in too (a lamp's highlight is no sun): the gate is
@@ -550,7 +551,10 @@ TEST(PeakDetector, AnLdrFrameHasOneSunTheOneWhoseSkyGlows) {
   };
   clip_twin(sun);
   clip_twin(Dir(120, 42));
-  EXPECT_EQ(DetectPeaks(twins).peaks.size(), 0u) << "two suns alike: neither";
+  const PeakDetection alike = DetectPeaks(twins);
+  EXPECT_EQ(alike.peaks.size(), 0u) << "two suns alike: neither";
+  EXPECT_LT(alike.ldr_glow.x, PeakDetectorOptions{}.ldr_min_glow_margin * alike.ldr_glow.y);
+  EXPECT_GT(alike.ldr_glow.y, 0.0);
 }
 
 TEST(PeakDetector, LdrFrameWithoutClippingHasNoPeak) {
