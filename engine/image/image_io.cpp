@@ -14,6 +14,8 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <utility>
+#include <vector>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -77,6 +79,91 @@ bool ReadExrName(std::ifstream& in, std::size_t max_length, std::string* name) {
   return false;
 }
 
+// The value size OpenEXR reads for a fixed-size attribute type whatever size the attribute
+// declares (its TypedAttribute<T>::readValueFrom reads sizeof(T) bytes); -1 for other types. A
+// header whose declared size differs is parsed differently by the library than by a reader that
+// trusts the size: the next "attribute" it sees starts inside this one's value, with any size.
+int ExrFixedValueSize(const std::string& type) {
+  static const std::pair<const char*, int> kSizes[] = {{"box2i", 16},
+                                                       {"box2f", 16},
+                                                       {"chromaticities", 32},
+                                                       {"compression", 1},
+                                                       {"deepImageState", 1},
+                                                       {"double", 8},
+                                                       {"envmap", 1},
+                                                       {"float", 4},
+                                                       {"int", 4},
+                                                       {"keycode", 28},
+                                                       {"lineOrder", 1},
+                                                       {"m33f", 36},
+                                                       {"m33d", 72},
+                                                       {"m44f", 64},
+                                                       {"m44d", 128},
+                                                       {"rational", 8},
+                                                       {"tiledesc", 9},
+                                                       {"timecode", 8},
+                                                       {"v2i", 8},
+                                                       {"v2f", 8},
+                                                       {"v2d", 16},
+                                                       {"v3i", 12},
+                                                       {"v3f", 12},
+                                                       {"v3d", 24}};
+  for (const auto& [name, size] : kSizes)
+    if (type == name) return size;
+  return -1;
+}
+
+std::int32_t LittleEndian32(const unsigned char* b) {
+  return static_cast<std::int32_t>(b[0] | b[1] << 8 | b[2] << 16 | static_cast<std::uint32_t>(b[3]) << 24);
+}
+
+// Why OpenEXR would read a variable-size value of `size` bytes, at `in`, other than as exactly
+// those bytes; empty when it would not. Most such types ("string", unknown ones) are read as the
+// declared bytes, but four are read by their content: a "chlist" up to its empty channel name
+// (each channel: name NUL, then 16 bytes), a "floatvector" as size / 4 floats, a "stringvector"
+// as (int32 length, bytes) pairs, each allocated at its own length, a "preview" as int32 width and
+// height, then width x height RGBA allocated at once.
+std::string ExrValueProblem(std::ifstream& in, const std::string& type, std::int32_t size) {
+  if (type == "floatvector") return size % 4 ? "is not a whole number of floats" : "";
+  if (type != "chlist" && type != "stringvector" && type != "preview") return {};
+  std::vector<unsigned char> value(static_cast<std::size_t>(size));
+  if (!in.read(reinterpret_cast<char*>(value.data()), size)) return "ends early";
+  in.seekg(-static_cast<std::streamoff>(size), std::ios::cur);
+  if (type == "preview") {
+    if (size < 8) return "is shorter than a preview's size";
+    const long long width = static_cast<std::uint32_t>(LittleEndian32(&value[0]));
+    const long long height = static_cast<std::uint32_t>(LittleEndian32(&value[4]));
+    if (width * height * 4 != size - 8)
+      return "claims a preview of " + std::to_string(width) + "x" + std::to_string(height) + " in " +
+             std::to_string(size) + " bytes";
+    return {};
+  }
+  std::size_t at = 0;
+  if (type == "chlist") {
+    for (;;) {
+      const auto name_end = std::find(value.begin() + static_cast<std::ptrdiff_t>(at), value.end(), 0);
+      if (name_end == value.end()) return "ends inside a channel name";
+      const std::size_t name_length = static_cast<std::size_t>(name_end - value.begin()) - at;
+      at += name_length + 1;
+      if (name_length == 0) break;
+      if (value.size() - at < 16) return "ends inside a channel";
+      at += 16;
+    }
+    return at == value.size()
+               ? ""
+               : "holds its channels in " + std::to_string(at) + " of its " + std::to_string(size) + " bytes";
+  }
+  while (at < value.size()) {  // stringvector
+    if (value.size() - at < 4) return "ends inside a string's length";
+    const std::int32_t length = LittleEndian32(&value[at]);
+    at += 4;
+    if (length < 0 || static_cast<std::size_t>(length) > value.size() - at)
+      return "has a string of " + std::to_string(length) + " bytes";
+    at += static_cast<std::size_t>(length);
+  }
+  return {};
+}
+
 }  // namespace
 
 // The header layout (OpenEXR's file layout document): magic 76 2f 31 01, a version word whose bit
@@ -102,12 +189,16 @@ std::string ExrHeaderProblem(const std::filesystem::path& path) {
     std::uint8_t size_bytes[4];
     if (!ReadExrName(in, max_length, &type) || !in.read(reinterpret_cast<char*>(size_bytes), sizeof size_bytes))
       return "its OpenEXR header ends early in attribute '" + name + "'";
-    const std::int32_t size = static_cast<std::int32_t>(size_bytes[0] | size_bytes[1] << 8 | size_bytes[2] << 16 |
-                                                        static_cast<std::uint32_t>(size_bytes[3]) << 24);
+    const std::int32_t size = LittleEndian32(size_bytes);
     const long long left = file_size - static_cast<long long>(in.tellg());
     if (size < 0 || size > left)
       return "its OpenEXR header's attribute '" + name + "' claims " + std::to_string(size) + " bytes, but " +
              std::to_string(left) + " are left in the file";
+    if (const int fixed = ExrFixedValueSize(type); fixed >= 0 && size != fixed)
+      return "its OpenEXR header's attribute '" + name + "' of type " + type + " claims " + std::to_string(size) +
+             " bytes, where the type has " + std::to_string(fixed);
+    if (const std::string problem = ExrValueProblem(in, type, size); !problem.empty())
+      return "its OpenEXR header's attribute '" + name + "' " + problem;
     in.seekg(size, std::ios::cur);
   }
 }

@@ -49,7 +49,10 @@ sphere::EquirectImage LoadImage(const std::filesystem::path& path, const LoadOpt
 // Why an OpenEXR file's header cannot be read safely; empty when it can, or when the file is not
 // OpenEXR. The OpenEXR library allocates and clears the size an attribute declares before it reads
 // the value, so a header that claims a 2 GB string in a 3 kB file takes seconds and gigabytes to
-// be refused; here every attribute must fit in the bytes that follow it. Reads only the header.
+// be refused; here every attribute must fit in the bytes that follow it. The library also reads
+// some types by their content whatever size is declared (a box2i as 16 bytes, a channel list up
+// to its end); there the content must be the declared size, or the library and this check would
+// part ways at the next attribute. Reads only the header.
 std::string ExrHeaderProblem(const std::filesystem::path& path);
 
 // Replaces NaN, ±Inf and negative values by 0; returns {nan_or_inf, negative} counts (pixels).

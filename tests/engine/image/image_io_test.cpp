@@ -153,16 +153,25 @@ TEST_F(ImageIo, ATooLargeHeaderIsRefusedBeforeAPixelIsRead) {
       << ErrorOf(dir_ / "wide.exr");
 }
 
+std::string LittleEndianBytes(std::int32_t value) {
+  std::string bytes;
+  for (int k = 0; k < 4; ++k) bytes.push_back(static_cast<char>((static_cast<std::uint32_t>(value) >> (8 * k)) & 0xff));
+  return bytes;
+}
+
+// An attribute `name` of `type` that declares `size` bytes and holds `value`, made the header's first.
+void InsertExrAttribute(const fs::path& path, const std::string& name, const std::string& type, std::int32_t size,
+                        const std::string& value) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  bytes.insert(8, name + '\0' + type + '\0' + LittleEndianBytes(size) + value);
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+}
+
 // The fuzzer's timeout: an OpenEXR header whose first attribute, a string, claims `size` bytes.
 // OpenEXR allocated and cleared 2 GB for it before finding the file 3 kB long.
 void InsertExrString(const fs::path& path, std::int32_t size, const std::string& value) {
-  std::ifstream in(path, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  std::string attribute("owner\0string\0", 13);
-  for (int k = 0; k < 4; ++k)
-    attribute.push_back(static_cast<char>((static_cast<std::uint32_t>(size) >> (8 * k)) & 0xff));
-  bytes.insert(8, attribute + value);
-  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+  InsertExrAttribute(path, "owner", "string", size, value);
 }
 
 TEST_F(ImageIo, AnExrAttributeLongerThanItsFileIsRefusedBeforeOpenExrAllocatesIt) {
@@ -187,6 +196,39 @@ TEST_F(ImageIo, AnExrAttributeLongerThanItsFileIsRefusedBeforeOpenExrAllocatesIt
       << ExrHeaderProblem(dir_ / "cut.exr");
   std::ofstream(dir_ / "text.exr") << "not an exr";
   EXPECT_EQ(ExrHeaderProblem(dir_ / "text.exr"), "");  // not OpenEXR: the readers say what it is
+}
+
+// The fuzzer's second timeout: a box2i that declares 0 bytes. OpenEXR reads 16 whatever the size
+// says, so it met the next attributes inside this one's value, one of them claiming gigabytes
+// that a reader trusting the declared sizes never saw.
+TEST_F(ImageIo, AnExrAttributeWhoseContentIsNotItsDeclaredSizeIsRefused) {
+  const auto made = [&](const std::string& file, const std::string& type, std::int32_t size, const std::string& value) {
+    SaveImage(dir_ / file, sphere::EquirectImage(8, 4, 0.5f));
+    InsertExrAttribute(dir_ / file, "extra", type, size, value);
+    return ExrHeaderProblem(dir_ / file);
+  };
+  const std::string box(16, '\0');
+  EXPECT_EQ(made("box.exr", "box2i", 16, box), "");
+  EXPECT_NE(made("box0.exr", "box2i", 0, box).find("'extra' of type box2i claims 0 bytes, where the type has 16"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(dir_ / "box0.exr").find("box0.exr: its OpenEXR header"), std::string::npos);
+
+  const std::string channel = std::string("Y\0", 2) + std::string(16, '\0');
+  EXPECT_EQ(made("chlist.exr", "chlist", 19, channel + '\0'), "");
+  EXPECT_NE(
+      made("chlist_long.exr", "chlist", 24, channel + '\0' + "abcd").find("holds its channels in 19 of its 24 bytes"),
+      std::string::npos);
+  EXPECT_NE(made("chlist_open.exr", "chlist", 18, channel).find("ends inside a channel"), std::string::npos);
+
+  EXPECT_EQ(made("strings.exr", "stringvector", 11, LittleEndianBytes(3) + "abc" + LittleEndianBytes(0)), "");
+  EXPECT_NE(made("string_huge.exr", "stringvector", 7, LittleEndianBytes(0x7ffffff0) + "abc")
+                .find("has a string of 2147483632 bytes"),
+            std::string::npos);
+  EXPECT_EQ(made("preview.exr", "preview", 12, LittleEndianBytes(1) + LittleEndianBytes(1) + "rgba"), "");
+  EXPECT_NE(made("preview_huge.exr", "preview", 12, LittleEndianBytes(65536) + LittleEndianBytes(65536) + "rgba")
+                .find("claims a preview of 65536x65536"),
+            std::string::npos);
+  EXPECT_NE(made("floats.exr", "floatvector", 6, "abcdef").find("not a whole number of floats"), std::string::npos);
 }
 
 TEST_F(ImageIo, ATruncatedJpegIsRefusedNotFilledWithGrey) {
