@@ -68,7 +68,7 @@ int RunBenchPlayer(const BenchPlayerOptions& b) {
   o.shading_rate = b.shading_rate;
   o.out_dir = (std::filesystem::temp_directory_path() / ("odvr_bench_player_" + std::to_string(::getpid()))).string();
   std::cerr << "bench player: " << o.headless_frames << " frames at " << b.size << " on " << gl_renderer << "\n";
-  PlayerReport r = RunAugmentedHeadless(o);
+  PlayerReport r = RunAugmentedPlayer(o, /*window=*/false);
   std::filesystem::remove_all(o.out_dir);
 
   std::ostringstream md;

@@ -12,11 +12,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "app/ar/augmented_scene.h"
 #include "app/ar/car_look.h"
 #include "app/player/player.h"
+#include "app/player/player_loop.h"
 #include "app/player/view_controller.h"
 #include "app/player/window_input.h"
 #include "core/error.h"
@@ -28,8 +30,6 @@
 
 namespace odvr::app {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 AugmentedOptions SceneOptions(const PlayerOptions& o) {
   AugmentedOptions a;
@@ -157,201 +157,145 @@ void WarnIfTheCarIsUnseen(const AugmentedFrame& first, const std::string& car) {
         car);
 }
 
+// The car on a recorded street: without a script the video plays and the car cruises ahead of
+// the camera until a key (WASD, arrows) takes the wheel; space pauses, C hides the car.
+class AugmentedPlayerScene : public PlayerScene {
+ public:
+  AugmentedPlayerScene(const PlayerOptions& options, bool window, PlayerReport* report)
+      : options_(options),
+        scene_(Options(options, window)),
+        script_(options.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(options.drive)),
+        cruising_(script_.empty()),
+        report_(report) {}
+
+  void Key(int key) override {
+    if (key == GLFW_KEY_SPACE) paused_ = !paused_;
+    if (key == GLFW_KEY_C) draw_car_ = !draw_car_;
+  }
+
+  // Paused, the car and its light stand still: the picture only changes with the look.
+  void Advance(double wall_dt, const std::function<bool(int)>& held, ViewController*) override {
+    dt_ = paused_ ? 0.0 : wall_dt;
+    const CarInput input = WithHeldCarKeys(DriveInputAt(script_, drive_t_), held);
+    drive_t_ += dt_;
+    if (input.forward || input.backward || input.left || input.right) cruising_ = false;
+    if (cruising_)
+      scene_.Cruise(dt_);
+    else
+      scene_.Drive(input, dt_);
+  }
+
+  // Rendered at the window's size (at least the renderer's smallest useful picture, which a tiny
+  // window shows scaled down) and drawn where it was rendered: no read-back, no upload.
+  void Draw(int width, int height, const ViewController& look) override {
+    const ViewState& l = look.state();
+    Show(scene_.Render(std::max(width, 16), std::max(height, 16), {l.yaw_deg, l.pitch_deg, l.fov_deg, draw_car_}, dt_));
+    presenter_.Show(scene_.composite(), static_cast<float>(options_.exposure), width, height);
+  }
+
+  std::vector<std::string> Overlay(const ViewState& look) const override {
+    const AugmentedFrame& f = frame_;
+    std::vector<std::string> lines = {
+        Printf("frame %d (light %d)   car %.1f km/h%s%s", f.view_frame, f.light_frame, scene_.car_speed_mps() * 3.6,
+               cruising_ ? "  cruising" : "", paused_ ? "  (paused)" : ""),
+        Printf("decode %.1f  lighting %.1f  render %.1f  composite %.1f ms", f.ms.decode, f.ms.lighting, f.ms.render,
+               f.ms.composite),
+        Printf("total %.1f ms (%.1f fps)  yaw %.0f pitch %.0f fov %.0f", f.ms.total,
+               f.ms.total > 0 ? 1000 / f.ms.total : 0.0, look.yaw_deg, look.pitch_deg, look.fov_deg),
+        "WASD drive, drag look, wheel zoom, space pause, C car, F1 panel, F12 shot"};
+    if (f.at_stretch_end) lines.push_back("the end of the reconstructed street: no frame shows beyond it");
+    return lines;
+  }
+
+  void Panels(int width, const std::array<int, 4>& overlay) override {
+    CarLook look = scene_.look();
+    if (CarPanel(width, options_.lighting_levels, options_.panel, frame_, &look, &panel_widgets_)) scene_.SetLook(look);
+    panel_widgets_["overlay_min"] = {overlay[0], overlay[1]};
+    panel_widgets_["overlay_max"] = {overlay[2], overlay[3]};
+  }
+
+  nlohmann::json Trace() const override {
+    const CarState& car = scene_.car().state();
+    const AugmentedFrame& f = frame_;
+    return {{"view_frame", f.view_frame},
+            {"light_frame", f.light_frame},
+            {"paused", paused_},
+            {"draw_car", draw_car_},
+            {"car_world_xz", {car.position.x, car.position.z}},
+            {"car_speed_mps", car.speed_mps},
+            {"car_pixel", {f.car_in_front ? f.car_pixel.x : -1, f.car_in_front ? f.car_pixel.y : -1}},
+            {"car_pixels", f.car_pixels},
+            {"at_stretch_end", f.at_stretch_end},
+            {"look",
+             {{"model", static_cast<int>(scene_.look().model)},
+              {"levels", scene_.look().levels},
+              {"peaks", scene_.look().peaks},
+              {"cones", scene_.look().cones}}},
+            {"panel", panel_widgets_},
+            {"ms",
+             {{"decode", f.ms.decode},
+              {"lighting", f.ms.lighting},
+              {"render", f.ms.render},
+              {"readback", f.ms.readback},
+              {"composite", f.ms.composite},
+              {"total", f.ms.total}}}};
+  }
+
+  // The video's frames; with a script, as many as it lasts.
+  int HeadlessFrameCount() const override {
+    if (script_.empty()) return static_cast<int>(scene_.frames().size());
+    return std::max(1, static_cast<int>(std::ceil(DriveDuration(script_) / HeadlessDt() - 1e-9)) + 1);
+  }
+
+  // Frame i shows the car after i steps of the script; without one the video plays and the car
+  // cruises ahead of the camera.
+  void WriteHeadlessFrame(int i, int width, int height, const ViewState& look,
+                          const std::filesystem::path& png) override {
+    const double dt = HeadlessDt();
+    if (i > 0 && script_.empty()) scene_.Cruise(dt);
+    if (i > 0 && !script_.empty()) scene_.Drive(DriveInputAt(script_, (i - 1) * dt), dt);
+    Show(scene_.Render(width, height, {look.yaw_deg, look.pitch_deg, 0, true}, i > 0 ? dt : 0));
+    image::SaveImage(png, frame_.image);
+    report_->frames.back().file = png.string();
+  }
+
+  void Finish() override { Medians(all_, report_); }
+
+ private:
+  static AugmentedOptions Options(const PlayerOptions& o, bool window) {
+    AugmentedOptions a = SceneOptions(o);
+    a.composite_on_gpu = window;  // drawn where it was rendered: no read-back, no upload
+    return a;
+  }
+  double HeadlessDt() const { return 1.0 / (scene_.fps() > 0 ? scene_.fps() : 25.0); }
+
+  // Keeps the frame's figures; the first frame warns when the car is out of sight.
+  void Show(AugmentedFrame frame) {
+    frame_ = std::move(frame);
+    if (all_.empty()) WarnIfTheCarIsUnseen(frame_, options_.car);
+    all_.push_back(Timings(frame_));
+    report_->frames.push_back(Record(frame_));
+  }
+
+  const PlayerOptions& options_;
+  AugmentedScene scene_;
+  std::vector<DriveStep> script_;
+  bool cruising_;
+  PlayerReport* report_;
+  bool paused_ = false, draw_car_ = true;
+  double dt_ = 0, drive_t_ = 0;  // drive_t_: the script's clock, which stops while paused
+  FramePresenter presenter_;
+  AugmentedFrame frame_;
+  std::vector<FrameTimings> all_;
+  std::map<std::string, std::array<int, 2>> panel_widgets_;
+};
+
 }  // namespace
 
-PlayerReport RunAugmentedHeadless(const PlayerOptions& o) {
-  gl::HeadlessContext context;
-  AugmentedScene scene(SceneOptions(o));
-  const auto script = o.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(o.drive);
-  const double dt = 1.0 / (scene.fps() > 0 ? scene.fps() : 25.0);
-  int frames = o.headless_frames;
-  if (frames <= 0)
-    frames = script.empty() ? static_cast<int>(scene.frames().size())
-                            : std::max(1, static_cast<int>(std::ceil(DriveDuration(script) / dt - 1e-9)) + 1);
+PlayerReport RunAugmentedPlayer(const PlayerOptions& options, bool window) {
   PlayerReport report;
-  report.mode = "headless";
-  report.output_dir = o.out_dir;
-  std::filesystem::create_directories(o.out_dir);
-  std::vector<FrameTimings> all;
-  const AugmentedView view{o.view.yaw_deg, o.view.pitch_deg, 0, true};
-  for (int i = 0; i < frames; ++i) {
-    // Frame i shows the car after i steps of the script; without one the video plays and the
-    // car cruises ahead of the camera.
-    if (i > 0 && script.empty()) scene.Cruise(dt);
-    if (i > 0 && !script.empty()) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
-    const AugmentedFrame f = scene.Render(o.width, o.height, view, i > 0 ? dt : 0);
-    if (i == 0) WarnIfTheCarIsUnseen(f, o.car);
-    char name[32];
-    std::snprintf(name, sizeof name, "frame_%06d.png", i);
-    const auto path = std::filesystem::path(o.out_dir) / name;
-    image::SaveImage(path, f.image);
-    all.push_back(Timings(f));
-    report.frames.push_back(Record(f));
-    report.frames.back().file = path.string();
-    ++report.frames_shown;
-  }
-  Medians(all, &report);
-  return report;
-}
-
-PlayerReport RunAugmentedWindow(const PlayerOptions& o) {
-  gl::WindowContext window(o.width, o.height, "odvr — " + o.video);
-  GLFWwindow* w = window.window();
-  AugmentedOptions scene_options = SceneOptions(o);
-  scene_options.composite_on_gpu = true;  // drawn where it was rendered: no read-back, no upload
-  AugmentedScene scene(scene_options);
-  const auto script = o.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(o.drive);
-  std::pair<int, int> resize{0, 0};
-  if (!o.resize.empty()) resize = ParseSize(o.resize, "--resize");
-  glfwSwapInterval(0);  // the frame takes what it takes; vsync would only add to it
-
-  ImGuiSession imgui(w);
-  WindowInput input(w);
-
-  PlayerReport report;
-  report.mode = "window";
-  std::vector<FrameTimings> all;
-  // The look is an offset from looking at the car: the same free look as the plain player.
-  ViewController look;
-  look.Set({o.view.yaw_deg, o.view.pitch_deg, o.view.fov_deg});
-  bool draw_car = true, show_overlay = true, paused = false, ready = false, resized = false;
-  int shots = 0;
-  FramePresenter presenter;
-  const auto start = Clock::now();
-  auto previous = start;
-  double drive_t = 0;  // the script's clock: it stops while paused
-  bool cruising = script.empty();
-  AugmentedFrame frame;
-  std::vector<std::string> overlay;
-  std::map<std::string, std::array<int, 2>> panel_widgets;
-  while (!glfwWindowShouldClose(w)) {
-    glfwPollEvents();
-    const auto now = Clock::now();
-    const double wall_dt = std::chrono::duration<double>(now - previous).count();
-    const double t = std::chrono::duration<double>(now - start).count();
-    previous = now;
-
-    int fb_w = 0, fb_h = 0;
-    glfwGetFramebufferSize(w, &fb_w, &fb_h);
-    const WindowInput::Events in = input.Take();
-    look.Drag(in.drag_dx, in.drag_dy, std::max(fb_h, 1));
-    look.Scroll(in.scroll);
-    bool screenshot = false;
-    for (const int key : in.keys) {
-      if (key == GLFW_KEY_SPACE) paused = !paused;
-      if (key == GLFW_KEY_C) draw_car = !draw_car;
-      if (key == GLFW_KEY_EQUAL || key == GLFW_KEY_KP_ADD) look.Scroll(1);
-      if (key == GLFW_KEY_MINUS || key == GLFW_KEY_KP_SUBTRACT) look.Scroll(-1);
-      if (key == GLFW_KEY_F1) show_overlay = !show_overlay;
-      if (key == GLFW_KEY_F12) screenshot = true;
-    }
-    // Paused, the car and its light stand still: the picture only changes with the look.
-    const double dt = paused ? 0.0 : wall_dt;
-    const bool keys_free = !ImGui::GetIO().WantTextInput;
-    auto held = [&](int a, int b) {
-      return keys_free && (glfwGetKey(w, a) == GLFW_PRESS || glfwGetKey(w, b) == GLFW_PRESS);
-    };
-    CarInput car_input = DriveInputAt(script, drive_t);
-    drive_t += dt;
-    car_input.forward |= held(GLFW_KEY_W, GLFW_KEY_UP);
-    car_input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
-    car_input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
-    car_input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
-    // Without a script the video plays and the car cruises ahead of the camera until a key
-    // takes the wheel.
-    if (car_input.forward || car_input.backward || car_input.left || car_input.right) cruising = false;
-    if (cruising)
-      scene.Cruise(dt);
-    else
-      scene.Drive(car_input, dt);
-
-    if (fb_w > 0 && fb_h > 0) {
-      // The renderer's smallest useful picture; a tiny window shows it scaled down.
-      const int rw = std::max(fb_w, 16), rh = std::max(fb_h, 16);
-      const AugmentedView view{look.state().yaw_deg, look.state().pitch_deg, look.state().fov_deg, draw_car};
-      frame = scene.Render(rw, rh, view, dt);
-      if (all.empty()) WarnIfTheCarIsUnseen(frame, o.car);
-      all.push_back(Timings(frame));
-      report.frames.push_back(Record(frame));
-      presenter.Show(scene.composite(), static_cast<float>(o.exposure), fb_w, fb_h);
-
-      overlay = {Printf("frame %d (light %d)   car %.1f km/h%s%s", frame.view_frame, frame.light_frame,
-                        scene.car_speed_mps() * 3.6, cruising ? "  cruising" : "", paused ? "  (paused)" : ""),
-                 Printf("decode %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.decode,
-                        frame.ms.lighting, frame.ms.render, frame.ms.composite),
-                 Printf("total %.1f ms (%.1f fps)  yaw %.0f pitch %.0f fov %.0f", frame.ms.total,
-                        frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0, look.state().yaw_deg, look.state().pitch_deg,
-                        look.state().fov_deg),
-                 "WASD drive, drag look, wheel zoom, space pause, C car, F1 panel, F12 shot"};
-      if (frame.at_stretch_end) overlay.push_back("the end of the reconstructed street: no frame shows beyond it");
-      imgui.NewFrame();
-      if (show_overlay) {
-        ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
-        ImGui::SetNextWindowBgAlpha(0.6f);
-        ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
-        for (const auto& line : overlay) ImGui::TextUnformatted(line.c_str());
-        const ImVec2 at = ImGui::GetWindowPos(), size = ImGui::GetWindowSize();
-        ImGui::End();
-        CarLook car_look = scene.look();
-        if (CarPanel(fb_w, o.lighting_levels, o.panel, frame, &car_look, &panel_widgets)) scene.SetLook(car_look);
-        panel_widgets["overlay_min"] = {static_cast<int>(at.x), static_cast<int>(at.y)};
-        panel_widgets["overlay_max"] = {static_cast<int>(at.x + size.x), static_cast<int>(at.y + size.y)};
-      }
-      imgui.Render();
-    }
-    ++report.frames_shown;
-    if (resize.first > 0 && !resized && t > 0.5 * o.quit_after_s) {
-      glfwSetWindowSize(w, resize.first, resize.second);
-      resized = true;
-    }
-    const bool quitting = o.quit_after_s > 0 && t > o.quit_after_s;
-    if (quitting && !o.screenshot.empty() && fb_w > 0 && fb_h > 0) WriteWindowScreenshot(o.screenshot, fb_w, fb_h);
-    std::string shot;
-    if (screenshot && fb_w > 0 && fb_h > 0) {
-      shot = ScreenshotPath(o.screenshot, ++shots);
-      WriteWindowScreenshot(shot, fb_w, fb_h);
-      if (!o.trace) std::fprintf(stderr, "screenshot: %s\n", shot.c_str());
-    }
-    glfwSwapBuffers(w);
-    if (o.trace && (!ready || !shot.empty()) && fb_w > 0 && fb_h > 0) {
-      const CarState& car = scene.car().state();
-      nlohmann::json j{
-          {"event", ready ? "screenshot" : "ready"},
-          {"file", shot},
-          {"size", {fb_w, fb_h}},
-          {"view_frame", frame.view_frame},
-          {"light_frame", frame.light_frame},
-          {"paused", paused},
-          {"draw_car", draw_car},
-          {"yaw", look.state().yaw_deg},
-          {"pitch", look.state().pitch_deg},
-          {"fov", look.state().fov_deg},
-          {"car_world_xz", {car.position.x, car.position.z}},
-          {"car_speed_mps", car.speed_mps},
-          {"car_pixel", {frame.car_in_front ? frame.car_pixel.x : -1, frame.car_in_front ? frame.car_pixel.y : -1}},
-          {"car_pixels", frame.car_pixels},
-          {"at_stretch_end", frame.at_stretch_end},
-          {"overlay_shown", show_overlay},
-          {"overlay", overlay},
-          {"look",
-           {{"model", static_cast<int>(scene.look().model)},
-            {"levels", scene.look().levels},
-            {"peaks", scene.look().peaks},
-            {"cones", scene.look().cones}}},
-          {"panel", panel_widgets},
-          {"ms",
-           {{"decode", frame.ms.decode},
-            {"lighting", frame.ms.lighting},
-            {"render", frame.ms.render},
-            {"readback", frame.ms.readback},
-            {"composite", frame.ms.composite},
-            {"total", frame.ms.total}}}};
-      PrintTrace(j.dump());
-      ready = true;
-    }
-    if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
-  }
-  Medians(all, &report);
+  const SceneFactory make = [&] { return std::make_unique<AugmentedPlayerScene>(options, window, &report); };
+  RunPlayerLoop(options, window, "odvr — " + options.video, make, &report);
   return report;
 }
 

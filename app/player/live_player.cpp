@@ -13,8 +13,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
 
+#include "app/player/player_loop.h"
 #include "app/player/view_controller.h"
 #include "app/player/window_input.h"
 #include "core/error.h"
@@ -26,8 +28,6 @@
 
 namespace odvr::app {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 LiveSceneOptions SceneOptions(const LivePlayOptions& o) {
   const PlayerOptions& p = o.player;
@@ -76,136 +76,106 @@ LiveTimings Medians(const std::vector<LiveTimings>& all) {
   return m;
 }
 
-void Finish(const LiveScene& scene, const std::vector<LiveTimings>& all, LiveReport* report) {
-  report->median = Medians(all);
-  if (!all.empty()) report->last = all.back();
-  report->lost_cameras = scene.lost_cameras();
-  report->source_stats = scene.source_stats();
-  report->source = scene.source_description();
-}
+// The car on a live rig: the newest set of the cameras' frames stitched, the car driven by WASD or
+// the arrows; lost cameras are said in the overlay (window) or on stderr once per event (headless).
+class LivePlayerScene : public PlayerScene {
+ public:
+  LivePlayerScene(const LivePlayOptions& options, bool window, LiveReport* report)
+      : options_(options),
+        scene_(Options(options, window)),
+        script_(options.player.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(options.player.drive)),
+        report_(report) {}
 
-LiveReport RunLiveHeadless(const LivePlayOptions& o) {
-  const PlayerOptions& p = o.player;
-  gl::HeadlessContext context;
-  LiveScene scene(SceneOptions(o));
-  const auto script = p.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(p.drive);
-  const double dt = 1.0 / 25;  // the script advances one rig frame per shown frame
-  const int frames = p.headless_frames > 0 ? p.headless_frames : LivePlayOptions::kDefaultHeadlessFrames;
-  LiveReport report;
-  report.mode = "headless";
-  report.output_dir = p.out_dir;
-  std::filesystem::create_directories(p.out_dir);
-  std::vector<LiveTimings> all;
-  const AugmentedView view{p.view.yaw_deg, p.view.pitch_deg, 0, true};
-  for (int i = 0; i < frames; ++i) {
-    if (i > 0) scene.Drive(DriveInputAt(script, (i - 1) * dt), dt);
-    const LiveFrame f = scene.Render(p.width, p.height, view);
-    // Nobody watches a headless run: say each event once, where a user running it would look.
-    for (auto& m : scene.TakeMessages()) {
+  void Advance(double dt, const std::function<bool(int)>& held, ViewController*) override {
+    const CarInput input = WithHeldCarKeys(DriveInputAt(script_, drive_t_), held);
+    drive_t_ += dt;
+    scene_.Drive(input, dt);
+  }
+
+  void Draw(int width, int height, const ViewController& look) override {
+    const ViewState& l = look.state();
+    Show(scene_.Render(std::max(width, 16), std::max(height, 16), {l.yaw_deg, l.pitch_deg, l.fov_deg, true}));
+    for (auto& m : scene_.TakeMessages()) report_->messages.push_back(std::move(m));
+    if (frame_.image.empty())
+      presenter_.Show(scene_.composite(), static_cast<float>(options_.player.exposure), width, height);
+    else
+      presenter_.Show(frame_.image, width, height);
+  }
+
+  std::vector<std::string> Overlay(const ViewState&) const override {
+    const LiveFrame& f = frame_;
+    return {Printf("set %ld  cameras %d / %d   car %.1f km/h", f.set_index, f.cameras_present,
+                   scene_.rig().camera_count(), scene_.car().state().speed_mps * 3.6),
+            Printf("wait %.1f  stitch %.1f  lighting %.1f  render %.1f  composite %.1f ms", f.ms.capture_wait,
+                   f.ms.stitch, f.ms.lighting, f.ms.render, f.ms.composite),
+            Printf("total %.1f ms  (%.1f fps)", f.ms.total, f.ms.total > 0 ? 1000 / f.ms.total : 0.0),
+            "WASD/arrows drive, drag looks, wheel or +/- zooms, F1 panel, F12 shot, Esc quits"};
+  }
+
+  // Lost cameras stay listed for as long as they are gone; the latest event under them.
+  void OverlayControls() override {
+    for (const auto& camera : scene_.lost_cameras())
+      ImGui::TextColored(ImVec4(1, 0.4f, 0.2f, 1), "camera %s lost: playing on without it", camera.c_str());
+    if (!report_->messages.empty())
+      ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", report_->messages.back().c_str());
+  }
+
+  nlohmann::json Trace() const override {
+    const LiveFrame& f = frame_;
+    return {{"set_index", f.set_index},
+            {"cameras_present", f.cameras_present},
+            {"lost_cameras", scene_.lost_cameras()},
+            {"car_pixel", {f.car_in_front ? f.car_pixel.x : -1, f.car_in_front ? f.car_pixel.y : -1}},
+            {"car_pixels", f.car_pixels}};
+  }
+
+  int HeadlessFrameCount() const override { return LivePlayOptions::kDefaultHeadlessFrames; }
+
+  // The script advances one rig frame per shown frame. Nobody watches a headless run: each event
+  // is said once, where a user running it would look.
+  void WriteHeadlessFrame(int i, int width, int height, const ViewState& look,
+                          const std::filesystem::path& png) override {
+    const double dt = 1.0 / 25;
+    if (i > 0) scene_.Drive(DriveInputAt(script_, (i - 1) * dt), dt);
+    Show(scene_.Render(width, height, {look.yaw_deg, look.pitch_deg, 0, true}));
+    for (auto& m : scene_.TakeMessages()) {
       std::cerr << "odvr play --live: " << m << "\n";
-      report.messages.push_back(std::move(m));
+      report_->messages.push_back(std::move(m));
     }
-    char name[32];
-    std::snprintf(name, sizeof name, "frame_%06d.png", i);
-    const auto path = std::filesystem::path(p.out_dir) / name;
-    image::SaveImage(path, f.image);
-    all.push_back(f.ms);
-    report.frames.push_back(Record(f));
-    report.frames.back().file = path.string();
-    ++report.frames_shown;
+    image::SaveImage(png, frame_.image);
+    report_->frames.back().file = png.string();
   }
-  Finish(scene, all, &report);
-  return report;
-}
 
-LiveReport RunLiveWindow(const LivePlayOptions& o) {
-  const PlayerOptions& p = o.player;
-  gl::WindowContext window(p.width, p.height, "odvr live — " + o.rig);
-  GLFWwindow* w = window.window();
-  LiveSceneOptions scene_options = SceneOptions(o);
-  scene_options.composite_on_gpu = true;  // with the car: drawn where it was rendered, no read-back
-  LiveScene scene(scene_options);
-  const auto script = p.drive.empty() ? std::vector<DriveStep>{} : ParseDriveScript(p.drive);
-  glfwSwapInterval(0);  // the cameras pace the loop
-
-  ImGuiSession imgui(w);
-  WindowInput input(w);
-
-  LiveReport report;
-  report.mode = "window";
-  std::vector<LiveTimings> all;
-  // The same free look as the other players, as an offset from looking at the car.
-  ViewController look;
-  look.Set({p.view.yaw_deg, p.view.pitch_deg, p.view.fov_deg});
-  FramePresenter presenter;
-  const auto start = Clock::now();
-  auto previous = start;
-  LiveFrame frame;
-  while (!glfwWindowShouldClose(w)) {
-    glfwPollEvents();
-    const auto now = Clock::now();
-    const double dt = std::chrono::duration<double>(now - previous).count();
-    const double t = std::chrono::duration<double>(now - start).count();
-    previous = now;
-    const bool keys_free = !ImGui::GetIO().WantTextInput;
-    auto held = [&](int a, int b) {
-      return keys_free && (glfwGetKey(w, a) == GLFW_PRESS || glfwGetKey(w, b) == GLFW_PRESS);
-    };
-    CarInput car_input = DriveInputAt(script, t);
-    car_input.forward |= held(GLFW_KEY_W, GLFW_KEY_UP);
-    car_input.backward |= held(GLFW_KEY_S, GLFW_KEY_DOWN);
-    car_input.left |= held(GLFW_KEY_A, GLFW_KEY_LEFT);
-    car_input.right |= held(GLFW_KEY_D, GLFW_KEY_RIGHT);
-    scene.Drive(car_input, dt);
-
-    int fb_w = 0, fb_h = 0;
-    glfwGetFramebufferSize(w, &fb_w, &fb_h);
-    const WindowInput::Events in = input.Take();
-    look.Drag(in.drag_dx, in.drag_dy, std::max(fb_h, 1));
-    look.Scroll(in.scroll);
-    for (const int key : in.keys) {
-      if (key == GLFW_KEY_EQUAL || key == GLFW_KEY_KP_ADD) look.Scroll(1);
-      if (key == GLFW_KEY_MINUS || key == GLFW_KEY_KP_SUBTRACT) look.Scroll(-1);
-    }
-
-    if (fb_w > 0 && fb_h > 0) {
-      const int rw = std::max(fb_w, 16), rh = std::max(fb_h, 16);
-      const AugmentedView view{look.state().yaw_deg, look.state().pitch_deg, look.state().fov_deg, true};
-      frame = scene.Render(rw, rh, view);
-      for (auto& m : scene.TakeMessages()) report.messages.push_back(std::move(m));
-      all.push_back(frame.ms);
-      report.frames.push_back(Record(frame));
-      if (frame.image.empty())
-        presenter.Show(scene.composite(), static_cast<float>(p.exposure), fb_w, fb_h);
-      else
-        presenter.Show(frame.image, fb_w, fb_h);
-
-      imgui.NewFrame();
-      ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
-      ImGui::SetNextWindowBgAlpha(0.6f);
-      ImGui::Begin("odvr live", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
-      ImGui::Text("set %ld  cameras %d / %d   car %.1f km/h", frame.set_index, frame.cameras_present,
-                  scene.rig().camera_count(), scene.car().state().speed_mps * 3.6);
-      ImGui::Text("wait %.1f  stitch %.1f  lighting %.1f  render %.1f  composite %.1f ms", frame.ms.capture_wait,
-                  frame.ms.stitch, frame.ms.lighting, frame.ms.render, frame.ms.composite);
-      ImGui::Text("total %.1f ms  (%.1f fps)", frame.ms.total, frame.ms.total > 0 ? 1000 / frame.ms.total : 0.0);
-      // Lost cameras stay listed for as long as they are gone; the latest event under them.
-      for (const auto& cam : scene.lost_cameras())
-        ImGui::TextColored(ImVec4(1, 0.4f, 0.2f, 1), "camera %s lost: playing on without it", cam.c_str());
-      if (!report.messages.empty()) ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", report.messages.back().c_str());
-      ImGui::Text("WASD/arrows drive, drag looks, wheel or +/- zooms, Esc quits");
-      ImGui::End();
-      imgui.Render();
-    }
-    ++report.frames_shown;
-    const bool quitting = p.quit_after_s > 0 && t > p.quit_after_s;
-    if (quitting && !p.screenshot.empty() && fb_w > 0 && fb_h > 0) WriteWindowScreenshot(p.screenshot, fb_w, fb_h);
-    glfwSwapBuffers(w);
-    if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
+  void Finish() override {
+    report_->median = Medians(all_);
+    if (!all_.empty()) report_->last = all_.back();
+    report_->lost_cameras = scene_.lost_cameras();
+    report_->source_stats = scene_.source_stats();
+    report_->source = scene_.source_description();
   }
-  Finish(scene, all, &report);
-  return report;
-}
+
+ private:
+  static LiveSceneOptions Options(const LivePlayOptions& o, bool window) {
+    LiveSceneOptions s = SceneOptions(o);
+    s.composite_on_gpu = window;  // with the car: drawn where it was rendered, no read-back
+    return s;
+  }
+
+  void Show(LiveFrame frame) {
+    frame_ = std::move(frame);
+    all_.push_back(frame_.ms);
+    report_->frames.push_back(Record(frame_));
+  }
+
+  const LivePlayOptions& options_;
+  LiveScene scene_;
+  std::vector<DriveStep> script_;
+  LiveReport* report_;
+  double drive_t_ = 0;
+  FramePresenter presenter_;
+  LiveFrame frame_;
+  std::vector<LiveTimings> all_;
+};
 
 nlohmann::json TimingsJson(const LiveTimings& t) {
   return {{"capture_wait", t.capture_wait}, {"stitch", t.stitch},       {"lighting", t.lighting}, {"render", t.render},
@@ -219,7 +189,11 @@ LiveReport RunLivePlayer(const LivePlayOptions& options) {
   if (p.width < 1 || p.height < 1 || p.width > 16384 || p.height > 16384)
     throw UsageError("--size", "must be between 1x1 and 16384x16384");
   if (p.headless_frames < 0) throw UsageError("--frames", "must be non-negative");
-  return p.headless || !DisplayAvailable() ? RunLiveHeadless(options) : RunLiveWindow(options);
+  const bool window = !p.headless && DisplayAvailable();
+  LiveReport report;
+  const SceneFactory make = [&] { return std::make_unique<LivePlayerScene>(options, window, &report); };
+  RunPlayerLoop(p, window, "odvr live — " + options.rig, make, &report);
+  return report;
 }
 
 int RunLivePlay(LivePlayOptions o, bool json) {

@@ -10,12 +10,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <glm/gtc/type_ptr.hpp>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "app/ar/frame_decoder.h"
 #include "app/player/playback_clock.h"
+#include "app/player/player_loop.h"
 #include "app/player/window_input.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -29,23 +32,106 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The pieces shared by the window and the headless loop: decoded frames onto the GPU, drawn.
-class Playback {
+// A recorded 360° video: decoded frames onto the GPU, drawn around the viewer, with playback
+// controls (space, comma, period, brackets, the overlay's sliders).
+class VideoScene : public PlayerScene {
  public:
-  explicit Playback(const PlayerOptions& options)
+  VideoScene(const PlayerOptions& options, PlayerReport* report)
       : video_(options.video),
         decoder_(OpenPlayableVideo(options.video, options.stereo)),
-        clock_(static_cast<int>(decoder_.frame_count()), decoder_.fps()) {
+        clock_(static_cast<int>(decoder_.frame_count()), decoder_.fps()),
+        exposure_(static_cast<float>(options.exposure)),
+        report_(report) {
     clock_.SetLoop(options.loop);
-    view_.Set(options.view);
   }
 
-  // Brings the clock's frame onto the GPU and draws it. A window waits briefly for the decoder
-  // and keeps the previous picture when the frame is late (playback goes on); a headless run
-  // writes frame i as file i, so it waits for exactly that frame whatever the machine's load,
-  // and fails naming it if the decoder never delivers.
+  int SwapInterval() const override { return 1; }
+
+  void Key(int key) override {
+    if (key == GLFW_KEY_SPACE) clock_.TogglePause();
+    if (key == GLFW_KEY_PERIOD) clock_.Step(1);
+    if (key == GLFW_KEY_COMMA) clock_.Step(-1);
+    if (key == GLFW_KEY_RIGHT_BRACKET) clock_.SetSpeed(clock_.speed() * 2);
+    if (key == GLFW_KEY_LEFT_BRACKET) clock_.SetSpeed(clock_.speed() / 2);
+  }
+
+  // The arrows turn the view; the clock runs with the wall.
+  void Advance(double dt, const std::function<bool(int)>& held, ViewController* look) override {
+    auto down = [&](int key) { return held(key) ? 1.0 : 0.0; };
+    look->Turn(down(GLFW_KEY_RIGHT) - down(GLFW_KEY_LEFT), down(GLFW_KEY_UP) - down(GLFW_KEY_DOWN), dt);
+    clock_.Advance(dt);
+  }
+
+  void Draw(int width, int height, const ViewController& look) override {
+    timings_ = DrawFrame(width, height, look, Wait::kBriefly);
+    totals_.push_back(timings_.total_ms);
+  }
+
+  std::vector<std::string> Overlay(const ViewState& look) const override {
+    return {Printf("frame %ld / %d   %.2f s%s", shown_index_, clock_.frame_count(), clock_.position_s(),
+                   clock_.playing() ? "" : "  (paused)"),
+            Printf("decode %.2f ms  upload %.2f ms  render %.2f ms", timings_.decode_ms, timings_.upload_ms,
+                   timings_.render_ms),
+            Printf("total %.2f ms (median %.2f)  %.0f fps", timings_.total_ms, Median(totals_),
+                   static_cast<double>(ImGui::GetIO().Framerate)),
+            Printf("yaw %.1f  pitch %.1f  fov %.1f", look.yaw_deg, look.pitch_deg, look.fov_deg)};
+  }
+
+  void OverlayControls() override {
+    if (ImGui::Button(clock_.playing() ? "pause" : "play")) clock_.TogglePause();
+    ImGui::SameLine();
+    int frame = clock_.frame();
+    if (ImGui::SliderInt("frame", &frame, 0, clock_.frame_count() - 1)) clock_.Seek(frame);
+    float speed = static_cast<float>(clock_.speed());
+    if (ImGui::SliderFloat("speed", &speed, 0.125f, 8.0f, "%.3g", ImGuiSliderFlags_Logarithmic)) clock_.SetSpeed(speed);
+    ImGui::SliderFloat("exposure", &exposure_, 0.05f, 20.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+    if (!last_event_.empty()) ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", last_event_.c_str());
+  }
+
+  bool ShowsTheAskedFrame() const override { return clock_.playing() || shown_index_ == clock_.frame(); }
+
+  nlohmann::json Trace() const override {
+    return {{"frame", shown_index_},
+            {"playing", clock_.playing()},
+            {"ms",
+             {{"decode", timings_.decode_ms},
+              {"upload", timings_.upload_ms},
+              {"render", timings_.render_ms},
+              {"total", timings_.total_ms}}}};
+  }
+
+  int HeadlessFrameCount() const override { return clock_.frame_count(); }
+
+  // Frame i of the video (looping), drawn off-screen and read back.
+  void WriteHeadlessFrame(int i, int width, int height, const ViewState& look,
+                          const std::filesystem::path& png) override {
+    if (!target_.has_value()) {
+      target_.emplace(gl::Texture::Create2D(GL_RGBA8, width, height));
+      fbo_.AttachColor(*target_).CheckComplete().Bind();
+      clock_.SetPlaying(false);
+    }
+    clock_.Seek(i % clock_.frame_count());
+    ViewController view;
+    view.Set(look);
+    timings_ = DrawFrame(width, height, view, Wait::kForTheFrame);
+    totals_.push_back(timings_.total_ms);
+    WriteWindowScreenshot(png.string(), width, height);
+  }
+
+  void Finish() override {
+    report_->last = timings_;
+    report_->median_total_ms = Median(totals_);
+  }
+
+ private:
+  // A window waits briefly for the decoder and keeps the previous picture when the frame is late
+  // (playback goes on); a headless run writes frame i as file i, so it waits for exactly that
+  // frame whatever the machine's load, and fails naming it if the decoder never delivers.
   enum class Wait { kBriefly, kForTheFrame };
-  FrameTimings Draw(int width, int height, float exposure, Wait wait = Wait::kBriefly) {
+  static constexpr long kHeadlessFrameWaitMs = 60000;
+
+  // Brings the clock's frame onto the GPU and draws it.
+  FrameTimings DrawFrame(int width, int height, const ViewController& look, Wait wait) {
     FrameTimings t;
     const auto start = Clock::now();
     if (decoder_.available_frames() < clock_.frame_count())
@@ -78,188 +164,32 @@ class Playback {
     glClearColor(0.02f, 0.02f, 0.02f, 1);
     glClear(GL_COLOR_BUFFER_BIT);
     const double aspect = height > 0 ? double(width) / height : 1.0;
-    panorama_.Draw(glm::mat4(view_.ViewMatrix()), glm::mat4(view_.ProjectionMatrix(aspect)), exposure, true);
+    panorama_.Draw(glm::mat4(look.ViewMatrix()), glm::mat4(look.ProjectionMatrix(aspect)), exposure_, true);
     t.render_ms = MsSince(render);
     t.total_ms = MsSince(start);
     for (auto& e : decoder_.TakeEvents()) last_event_ = e.message;
     return t;
   }
 
-  PlaybackClock& clock() { return clock_; }
-  ViewController& view() { return view_; }
-  long shown_index() const { return shown_index_; }
-  const std::string& last_event() const { return last_event_; }
-
- private:
-  static constexpr long kHeadlessFrameWaitMs = 60000;
   std::string video_;
   FrameDecoder decoder_;
   PlaybackClock clock_;
-  ViewController view_;
+  float exposure_;
+  PlayerReport* report_;
   render::PanoramaRenderer panorama_;
+  std::optional<gl::Texture> target_;  // headless: the off-screen picture
+  gl::Framebuffer fbo_;
   cv::Mat rgb_;
   long shown_index_ = -1;
   std::string last_event_;
+  FrameTimings timings_;
+  std::vector<double> totals_;
 };
 
-PlayerReport RunWindow(const PlayerOptions& options) {
-  gl::WindowContext window(options.width, options.height, "odvr — " + options.video);
-  GLFWwindow* w = window.window();
-  Playback playback(options);
-  glfwSwapInterval(1);
-
-  ImGuiSession imgui(w);
-  WindowInput input(w);
-
+PlayerReport RunVideoPlayer(const PlayerOptions& options, bool headless) {
   PlayerReport report;
-  report.mode = "window";
-  std::vector<double> totals;
-  float exposure = static_cast<float>(options.exposure);
-  bool show_overlay = true, ready = false;
-  int shots = 0;
-  bool screenshot_pending = false;  // F12 pressed, the shot not yet taken
-  auto screenshot_requested = Clock::now();
-  const auto start = Clock::now();
-  auto previous = Clock::now();
-  FrameTimings timings;
-  std::vector<std::string> overlay;
-  while (!glfwWindowShouldClose(w)) {
-    glfwPollEvents();
-    const double dt = SecondsSince(previous);
-    previous = Clock::now();
-    PlaybackClock& clock = playback.clock();
-    ViewController& view = playback.view();
-
-    // Input: drag to look, scroll or +/- to zoom, arrows to turn, space/,/./[/] for playback,
-    // F1 the overlay, F12 a screenshot.
-    int fb_w = 0, fb_h = 0;
-    glfwGetFramebufferSize(w, &fb_w, &fb_h);
-    const WindowInput::Events in = input.Take();
-    view.Drag(in.drag_dx, in.drag_dy, std::max(fb_h, 1));
-    view.Scroll(in.scroll);
-    for (const int key : in.keys) {
-      if (key == GLFW_KEY_SPACE) clock.TogglePause();
-      if (key == GLFW_KEY_PERIOD) clock.Step(1);
-      if (key == GLFW_KEY_COMMA) clock.Step(-1);
-      if (key == GLFW_KEY_RIGHT_BRACKET) clock.SetSpeed(clock.speed() * 2);
-      if (key == GLFW_KEY_LEFT_BRACKET) clock.SetSpeed(clock.speed() / 2);
-      if (key == GLFW_KEY_EQUAL || key == GLFW_KEY_KP_ADD) view.Scroll(1);
-      if (key == GLFW_KEY_MINUS || key == GLFW_KEY_KP_SUBTRACT) view.Scroll(-1);
-      if (key == GLFW_KEY_F1) show_overlay = !show_overlay;
-      if (key == GLFW_KEY_F12 && !screenshot_pending) {
-        screenshot_pending = true;
-        screenshot_requested = Clock::now();
-      }
-    }
-    const bool keys_free = !ImGui::GetIO().WantTextInput;
-    auto held = [&](int key) { return keys_free && glfwGetKey(w, key) == GLFW_PRESS ? 1.0 : 0.0; };
-    view.Turn(held(GLFW_KEY_RIGHT) - held(GLFW_KEY_LEFT), held(GLFW_KEY_UP) - held(GLFW_KEY_DOWN), dt);
-    clock.Advance(dt);
-
-    // A minimized or 1×1 window still runs the loop; it just draws nothing worth seeing.
-    if (fb_w > 0 && fb_h > 0) {
-      timings = playback.Draw(fb_w, fb_h, exposure);
-      totals.push_back(timings.total_ms);
-      overlay = {
-          Printf("frame %ld / %d   %.2f s%s", playback.shown_index(), clock.frame_count(), clock.position_s(),
-                 clock.playing() ? "" : "  (paused)"),
-          Printf("decode %.2f ms  upload %.2f ms  render %.2f ms", timings.decode_ms, timings.upload_ms,
-                 timings.render_ms),
-          Printf("total %.2f ms (median %.2f)  %.0f fps", timings.total_ms, Median(totals),
-                 static_cast<double>(ImGui::GetIO().Framerate)),
-          Printf("yaw %.1f  pitch %.1f  fov %.1f", view.state().yaw_deg, view.state().pitch_deg, view.state().fov_deg)};
-
-      imgui.NewFrame();
-      if (show_overlay) {
-        ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
-        ImGui::SetNextWindowBgAlpha(0.6f);
-        ImGui::Begin("odvr", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
-        for (const auto& line : overlay) ImGui::TextUnformatted(line.c_str());
-        if (ImGui::Button(clock.playing() ? "pause" : "play")) clock.TogglePause();
-        ImGui::SameLine();
-        int frame = clock.frame();
-        if (ImGui::SliderInt("frame", &frame, 0, clock.frame_count() - 1)) clock.Seek(frame);
-        float speed = static_cast<float>(clock.speed());
-        if (ImGui::SliderFloat("speed", &speed, 0.125f, 8.0f, "%.3g", ImGuiSliderFlags_Logarithmic))
-          clock.SetSpeed(speed);
-        ImGui::SliderFloat("exposure", &exposure, 0.05f, 20.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
-        if (!playback.last_event().empty())
-          ImGui::TextColored(ImVec4(1, 0.7f, 0.2f, 1), "%s", playback.last_event().c_str());
-        ImGui::End();
-      }
-      imgui.Render();
-    }
-    ++report.frames_shown;
-    const bool quitting = options.quit_after_s > 0 && SecondsSince(start) > options.quit_after_s;
-    if (quitting && !options.screenshot.empty() && fb_w > 0 && fb_h > 0)
-      WriteWindowScreenshot(options.screenshot, fb_w, fb_h);
-    // A screenshot shows the frame the clock is on: while paused (a step, a seek) it waits for the
-    // decoder to bring that frame, which a step back (a seek) can take longer than Draw's wait:
-    // CI under ASan shot frame 11 after '.' '.' ',' from 9, frame 10 arriving a loop later.
-    // Playing, or after 5 s (a frame that never comes), it shows what is on screen.
-    const bool frame_shown = clock.playing() || playback.shown_index() == clock.frame() ||
-                             Clock::now() - screenshot_requested > std::chrono::seconds(5);
-    std::string shot;
-    if (screenshot_pending && frame_shown && fb_w > 0 && fb_h > 0) {
-      screenshot_pending = false;
-      shot = ScreenshotPath(options.screenshot, ++shots);
-      WriteWindowScreenshot(shot, fb_w, fb_h);
-      if (!options.trace) spdlog::info("screenshot: {}", shot);
-    }
-    glfwSwapBuffers(w);
-    // After the swap: a test that waits for "ready" sends its input to a window that is showing.
-    if (options.trace && (!ready || !shot.empty()) && fb_w > 0 && fb_h > 0) {
-      nlohmann::json j{{"event", ready ? "screenshot" : "ready"},
-                       {"file", shot},
-                       {"size", {fb_w, fb_h}},
-                       {"frame", playback.shown_index()},
-                       {"playing", clock.playing()},
-                       {"yaw", view.state().yaw_deg},
-                       {"pitch", view.state().pitch_deg},
-                       {"fov", view.state().fov_deg},
-                       {"overlay_shown", show_overlay},
-                       {"overlay", overlay},
-                       {"ms",
-                        {{"decode", timings.decode_ms},
-                         {"upload", timings.upload_ms},
-                         {"render", timings.render_ms},
-                         {"total", timings.total_ms}}}};
-      PrintTrace(j.dump());
-      ready = true;
-    }
-    if (quitting) glfwSetWindowShouldClose(w, GLFW_TRUE);
-  }
-  report.median_total_ms = Median(totals);
-  report.last = timings;
-  return report;
-}
-
-PlayerReport RunHeadless(const PlayerOptions& options) {
-  gl::HeadlessContext context;
-  Playback playback(options);
-  gl::Texture color = gl::Texture::Create2D(GL_RGBA8, options.width, options.height);
-  gl::Framebuffer fbo;
-  fbo.AttachColor(color).CheckComplete().Bind();
-  PlayerReport report;
-  report.mode = "headless";
-  report.output_dir = options.out_dir;
-  std::filesystem::create_directories(options.out_dir);
-  const int frames = options.headless_frames > 0 ? options.headless_frames : playback.clock().frame_count();
-  std::vector<double> totals;
-  PlaybackClock& clock = playback.clock();
-  clock.SetPlaying(false);
-  for (int i = 0; i < frames; ++i) {
-    clock.Seek(i % clock.frame_count());
-    const FrameTimings t = playback.Draw(options.width, options.height, static_cast<float>(options.exposure),
-                                         Playback::Wait::kForTheFrame);
-    totals.push_back(t.total_ms);
-    report.last = t;
-    char name[32];
-    std::snprintf(name, sizeof name, "frame_%06d.png", i);
-    WriteWindowScreenshot((std::filesystem::path(options.out_dir) / name).string(), options.width, options.height);
-    ++report.frames_shown;
-  }
-  report.median_total_ms = Median(totals);
+  const SceneFactory make = [&] { return std::make_unique<VideoScene>(options, &report); };
+  RunPlayerLoop(options, !headless, "odvr — " + options.video, make, &report);
   return report;
 }
 
@@ -282,8 +212,8 @@ bool DisplayAvailable() {
 PlayerReport RunPlayer(const PlayerOptions& options) {
   options.Check();
   const bool headless = options.headless || !DisplayAvailable();
-  if (!options.trajectory.empty()) return headless ? RunAugmentedHeadless(options) : RunAugmentedWindow(options);
-  return headless ? RunHeadless(options) : RunWindow(options);
+  if (!options.trajectory.empty()) return RunAugmentedPlayer(options, !headless);
+  return RunVideoPlayer(options, headless);
 }
 
 }  // namespace odvr::app

@@ -66,9 +66,9 @@ struct PlayerReport {
 };
 
 PlayerReport RunPlayer(const PlayerOptions& options);
-// The augmented loops (app/player/augmented_player.cpp), chosen by RunPlayer when a trajectory is set.
-PlayerReport RunAugmentedHeadless(const PlayerOptions& options);
-PlayerReport RunAugmentedWindow(const PlayerOptions& options);
+// The car on the recorded street (app/player/augmented_player.cpp), in a window or headless: what
+// RunPlayer plays when a trajectory is set.
+PlayerReport RunAugmentedPlayer(const PlayerOptions& options, bool window);
 
 // True when a window can be opened (an X or Wayland display is set).
 bool DisplayAvailable();

@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "tests/app/run_odvr.h"
+#include "tests/app/scripted_window.h"
 
 namespace odvr::app {
 namespace {
@@ -191,6 +192,28 @@ TEST(RunPlayLiveGL, WindowUnderXvfbShowsTheLiveStreet) {
   cv::Scalar mean, stddev;
   cv::meanStdDev(window, mean, stddev);
   EXPECT_GT(stddev[0], 10) << "a street, not a blank window";
+}
+
+// The live scene in the one player loop: the loop's keys (+ zooms, F1 hides the overlay, F12
+// shoots) and its --trace work here as in the recorded players, the scene's figures in the line.
+TEST(RunPlayLiveGL, TheLiveWindowTakesTheLoopsKeysAndTracesItsScene) {
+  if (const std::string tool = odvr::testing::MissingWindowTool(); !tool.empty()) GTEST_SKIP() << tool << " is missing";
+  ScratchDir scratch("odvr_live_scripted");
+  odvr::testing::ScriptedWindow window(scratch.dir, "--live --rig " + kRig + " --size 320x180 --levels 3 --fov 90");
+  window.Shot("key plus");
+  window.Shot("key F1");
+  const auto lines = window.Run();
+  ASSERT_EQ(lines.size(), 3u) << window.log();
+  EXPECT_EQ(lines[0]["event"], "ready");
+  for (const auto& line : lines) {
+    EXPECT_EQ(line["cameras_present"].get<int>(), 6) << line.dump();
+    EXPECT_GE(line["set_index"].get<long>(), 0);
+    EXPECT_EQ(line["overlay"][0].get<std::string>().rfind("set ", 0), 0u) << line["overlay"][0];
+  }
+  EXPECT_LT(lines[1]["fov"].get<double>(), lines[0]["fov"].get<double>());  // + zoomed in
+  EXPECT_TRUE(lines[1]["overlay_shown"].get<bool>());
+  EXPECT_FALSE(lines[2]["overlay_shown"].get<bool>());
+  EXPECT_TRUE(fs::exists(lines[2]["file"].get<std::string>()));
 }
 
 }  // namespace
