@@ -44,23 +44,6 @@ void SetUpLogging(bool verbose, bool quiet) {
 
 }  // namespace
 
-CLI::Option* AddSetFlag(CLI::App* sub, const std::string& name, bool* value, bool set_to, const std::string& help) {
-  return sub->add_flag_callback(
-      name, [value, set_to] { *value = set_to; }, help);
-}
-
-CLI::Validator FiniteNumberIn(double min, double max) {
-  const std::string range = fmt::format("[{:g}, {:g}]", min, max);
-  return CLI::Validator(
-      [min, max, range](std::string& text) -> std::string {
-        double value = 0;
-        if (!CLI::detail::lexical_cast(text, value) || !std::isfinite(value) || value < min || value > max)
-          return "must be a number in " + range + ", got " + text;
-        return "";
-      },
-      "NUMBER in " + range);
-}
-
 int Main(int argc, char** argv) {
   CLI::App app{"odvr: an augmented-reality 360° video player that lights a virtual car with the video's own light",
                "odvr"};

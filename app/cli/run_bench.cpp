@@ -1,4 +1,10 @@
 // odvr bench …: benchmark programs that print speed beside error (never timed tests).
+#include "app/bench/bench_decode.h"
+#include "app/bench/bench_light.h"
+#include "app/bench/bench_player.h"
+#include "app/bench/bench_reconstruct.h"
+#include "app/bench/bench_render.h"
+#include "app/bench/bench_stitch.h"
 #include "app/cli/commands.h"
 
 namespace odvr::app {

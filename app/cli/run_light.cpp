@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/cli/commands.h"
-#include "app/cli/transform_tuning.h"
+#include "app/flags/transform_tuning.h"
 #include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"

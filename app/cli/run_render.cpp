@@ -12,9 +12,9 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "app/cli/bench_common.h"
+#include "app/bench/bench_common.h"
 #include "app/cli/commands.h"
-#include "app/cli/render_switches.h"
+#include "app/flags/render_switches.h"
 #include "core/error.h"
 #include "core/timing.h"
 #include "engine/gl/context.h"
@@ -93,11 +93,8 @@ render::TripleProductRenderer RendererFor(const scene::GltfScene& model, const g
   }
 }
 
-int RunRender(const RenderCliOptions& o) {
-  using Clock = std::chrono::steady_clock;
-  const auto [width, height] = ParseSize(o.size);
-  if (width < 8 || height < 8 || width > 8192 || height > 8192)
-    throw UsageError("--size", "each side must be 8..8192 pixels, got '" + o.size + "'");
+// The renderer's options from the command's flags, checked.
+render::RenderOptions RenderOptionsFor(const RenderCliOptions& o) {
   render::RenderOptions options = o.switches;
   options.lighting_levels = o.levels;
   options.cone_rings = ConeRingsForCount(o.cones);
@@ -111,6 +108,11 @@ int RunRender(const RenderCliOptions& o) {
     throw UsageError("--composite-only", "reads back the composite alone: it cannot write --layers");
   for (const auto& m : o.materials) options.materials.push_back(render::ParseMaterialOverride(m));
   options.Check();
+  return options;
+}
+
+// --model-matrix (3x4, rows) and --env-rotation (3x3, rows, a rotation), identity when not given.
+std::pair<glm::dmat4, glm::dmat3> TransformsFor(const RenderCliOptions& o) {
   glm::dmat4 world_from_model(1.0);
   if (!o.model_matrix.empty()) {
     const auto v = Numbers(o.model_matrix, "--model-matrix", 12);
@@ -128,6 +130,69 @@ int RunRender(const RenderCliOptions& o) {
         if (std::abs(should_be_identity[c][r] - (r == c ? 1.0 : 0.0)) > 1e-4)
           throw UsageError("--env-rotation", "is not a rotation matrix (R^T R != I)");
   }
+  return {world_from_model, world_from_env};
+}
+
+// The model's light: --lighting's file, else built from the environment map, timed (the median
+// of --repeat builds after the first, and the first).
+lighting::SgLighting LightingFor(const RenderCliOptions& o, const sphere::EquirectImage& env, double* ms,
+                                 double* first_ms) {
+  using Clock = std::chrono::steady_clock;
+  *ms = *first_ms = 0;
+  if (!o.lighting.empty()) return lighting::SgLighting::Load(o.lighting);
+  const auto t0 = Clock::now();
+  lighting::LightingOptions lo;
+  lo.transform.levels = o.levels;
+  lo.detect_peaks = !o.no_peaks;
+  lighting::LightingBuilder builder(lo);
+  lighting::SgLighting lighting_model = builder.Build(env);
+  *ms = *first_ms = MsSince(t0);
+  // Like the render's stages, the repeats time the steady state: the first build also makes
+  // each level's overlap lists, which every later frame reuses.
+  std::vector<double> steady;
+  for (int i = 1; i < o.repeat; ++i) {
+    const auto t = Clock::now();
+    lighting_model = builder.Build(env);
+    steady.push_back(MsSince(t));
+  }
+  if (!steady.empty()) *ms = Median(std::move(steady));
+  return lighting_model;
+}
+
+// Default: the model from its front-left, a little above, filling about half the frame.
+render::PinholeCamera DefaultCamera(const render::TripleProductRenderer& renderer, int width, int height) {
+  glm::dvec3 lo(-1), hi(1);
+  const auto& tris = renderer.world_triangles();
+  if (!tris.empty()) {
+    lo = glm::dvec3(1e300);
+    hi = glm::dvec3(-1e300);
+    for (const auto& p : tris) {
+      lo = glm::min(lo, glm::dvec3(p));
+      hi = glm::max(hi, glm::dvec3(p));
+    }
+  }
+  const glm::dvec3 centre = 0.5 * (lo + hi);
+  const double radius = std::max(0.5 * glm::length(hi - lo), 1e-3);
+  const glm::dvec3 dir = glm::normalize(glm::dvec3(0.75, 0.35, 0.9));
+  return render::PinholeCamera::LookAt(centre + 3.2 * radius * dir, centre, 40, width, height);
+}
+
+// --layers: the car, its alpha, its shadow, the background and the composite as EXR files.
+void SaveLayers(const std::filesystem::path& d, const render::RenderResult& r, int width, int height) {
+  std::filesystem::create_directories(d);
+  image::SaveImage(d / "car.exr", r.car);
+  SaveGrey(d / "car_alpha.exr", r.car_alpha, width, height);
+  image::SaveImage(d / "shadow.exr", r.shadow);
+  image::SaveImage(d / "background.exr", r.background);
+  image::SaveImage(d / "composite.exr", r.composite);
+}
+
+int RunRender(const RenderCliOptions& o) {
+  const auto [width, height] = ParseSize(o.size);
+  if (width < 8 || height < 8 || width > 8192 || height > 8192)
+    throw UsageError("--size", "each side must be 8..8192 pixels, got '" + o.size + "'");
+  const render::RenderOptions options = RenderOptionsFor(o);
+  const auto [world_from_model, world_from_env] = TransformsFor(o);
   std::vector<double> cam;
   if (!o.camera.empty()) {
     cam = Numbers(o.camera, "--camera", 7);
@@ -140,27 +205,7 @@ int RunRender(const RenderCliOptions& o) {
 
   gl::HeadlessContext context;
   double lighting_ms = 0, first_lighting_ms = 0;
-  lighting::SgLighting lighting_model;
-  if (!o.lighting.empty()) {
-    lighting_model = lighting::SgLighting::Load(o.lighting);
-  } else {
-    const auto t0 = Clock::now();
-    lighting::LightingOptions lo;
-    lo.transform.levels = o.levels;
-    lo.detect_peaks = !o.no_peaks;
-    lighting::LightingBuilder builder(lo);
-    lighting_model = builder.Build(env);
-    lighting_ms = first_lighting_ms = MsSince(t0);
-    // Like the render's stages, the repeats time the steady state: the first build also makes
-    // each level's overlap lists, which every later frame reuses.
-    std::vector<double> steady;
-    for (int i = 1; i < o.repeat; ++i) {
-      const auto t = Clock::now();
-      lighting_model = builder.Build(env);
-      steady.push_back(MsSince(t));
-    }
-    if (!steady.empty()) lighting_ms = Median(std::move(steady));
-  }
+  const lighting::SgLighting lighting_model = LightingFor(o, env, &lighting_ms, &first_lighting_ms);
 
   render::TripleProductRenderer renderer = RendererFor(model, world_from_model, options);
   renderer.SetLighting(lighting_model, world_from_env);
@@ -170,26 +215,8 @@ int RunRender(const RenderCliOptions& o) {
     renderer.SetEnvironment(env);
   }
 
-  render::PinholeCamera camera;
-  if (!cam.empty()) {
-    camera = CameraFromFlag(cam, width, height);
-  } else {
-    // Default: the model from its front-left, a little above, filling about half the frame.
-    glm::dvec3 lo(-1), hi(1);
-    const auto& tris = renderer.world_triangles();
-    if (!tris.empty()) {
-      lo = glm::dvec3(1e300);
-      hi = glm::dvec3(-1e300);
-      for (const auto& p : tris) {
-        lo = glm::min(lo, glm::dvec3(p));
-        hi = glm::max(hi, glm::dvec3(p));
-      }
-    }
-    const glm::dvec3 centre = 0.5 * (lo + hi);
-    const double radius = std::max(0.5 * glm::length(hi - lo), 1e-3);
-    const glm::dvec3 dir = glm::normalize(glm::dvec3(0.75, 0.35, 0.9));
-    camera = render::PinholeCamera::LookAt(centre + 3.2 * radius * dir, centre, 40, width, height);
-  }
+  const render::PinholeCamera camera =
+      cam.empty() ? DefaultCamera(renderer, width, height) : CameraFromFlag(cam, width, height);
 
   const render::ShadeDevice device = o.device == "cpu" ? render::ShadeDevice::kCpu : render::ShadeDevice::kGpu;
   // Repeats time the steady state: on llvmpipe the first dispatch also compiles the shaders.
@@ -208,15 +235,7 @@ int RunRender(const RenderCliOptions& o) {
     return Median(std::move(v));
   };
   image::SaveImage(o.out, r.composite);
-  if (!o.layers.empty()) {
-    std::filesystem::create_directories(o.layers);
-    const std::filesystem::path d = o.layers;
-    image::SaveImage(d / "car.exr", r.car);
-    SaveGrey(d / "car_alpha.exr", r.car_alpha, width, height);
-    image::SaveImage(d / "shadow.exr", r.shadow);
-    image::SaveImage(d / "background.exr", r.background);
-    image::SaveImage(d / "composite.exr", r.composite);
-  }
+  if (!o.layers.empty()) SaveLayers(o.layers, r, width, height);
 
   const auto& c = r.counts;
   if (o.json) {
@@ -282,21 +301,6 @@ int RunRender(const RenderCliOptions& o) {
 }
 
 }  // namespace
-
-int ConeRingsForCount(int cones) {
-  switch (cones) {
-    case 1:
-      return 0;
-    case 7:
-      return 1;
-    case 19:
-      return 2;
-    case 37:
-      return 3;
-    default:
-      throw UsageError("--cones", "must be 1, 7, 19 or 37 (a centre cone and 0–3 hexagonal rings)");
-  }
-}
 
 CommandFn AddRender(CLI::App* sub) {
   auto o = std::make_shared<RenderCliOptions>();

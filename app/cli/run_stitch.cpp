@@ -22,6 +22,7 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/srgb.h"
+#include "core/statistics.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
 
@@ -79,7 +80,9 @@ std::unique_ptr<capture::Source> OpenInput(const StitchCommand& c, const capture
   return capture::OpenImageSequences(dirs, {});
 }
 
-int RunStitch(const StitchCommand& c) {
+// The stitcher's options from the command's flags, checked; --scene-distance auto leaves the
+// distance for ChooseSceneDistance.
+capture::StitchOptions StitchOptionsFor(const StitchCommand& c) {
   capture::StitchOptions options;
   std::tie(options.width, options.height) = ParseSize(c.size);
   if (c.device != "gpu" && c.device != "cpu")
@@ -87,8 +90,7 @@ int RunStitch(const StitchCommand& c) {
   options.device = c.device == "gpu" ? capture::StitchDevice::kGpu : capture::StitchDevice::kCpu;
   options.compensate_gains = !c.no_gains;
   options.fill_unseen = !c.no_fill;
-  const bool auto_distance = c.scene_distance == "auto";
-  if (!auto_distance) {
+  if (c.scene_distance != "auto") {
     std::size_t used = 0;
     try {
       options.scene_distance_m = std::stod(c.scene_distance, &used);
@@ -101,6 +103,28 @@ int RunStitch(const StitchCommand& c) {
       throw UsageError("--scene-distance", "must be auto, 0 (infinity) or a positive distance");
   }
   options.Check();
+  return options;
+}
+
+// --scene-distance auto: chosen once for the clip, from frames spread over a recording, or from
+// the first frame set of a live source, which is then kept in `first_set` to be stitched first.
+capture::SceneDistanceChoice ChooseDistance(const StitchCommand& c, const capture::Rig& rig, capture::Source* source,
+                                            const capture::StitchOptions& options,
+                                            std::optional<capture::FrameSet>* first_set) {
+  auto choice = capture::ChooseSceneDistanceForRecording(rig, source, c.start, c.frames, options);
+  if (choice) return *choice;
+  *first_set = source->Next();
+  std::vector<std::vector<cv::Mat>> sets;
+  if (*first_set) {
+    std::vector<cv::Mat>& images = sets.emplace_back();
+    for (const auto& f : (*first_set)->frames) images.push_back(f.image);
+  }
+  return capture::ChooseSceneDistance(rig, sets, options);
+}
+
+int RunStitch(const StitchCommand& c) {
+  capture::StitchOptions options = StitchOptionsFor(c);
+  const bool auto_distance = c.scene_distance == "auto";
   if (c.frames < 0) throw UsageError("--frames", "must not be negative");
   if (c.start < 0) throw UsageError("--first", "must not be negative");
 
@@ -126,21 +150,10 @@ int RunStitch(const StitchCommand& c) {
       throw Error("--device gpu", std::string("no OpenGL 4.5 context (") + e.what() + "); use --device cpu");
     }
   }
-  // --scene-distance auto: chosen once for the clip, from frames spread over a recording, or from
-  // the first frame set of a live source (which is then stitched first).
   std::optional<capture::SceneDistanceChoice> choice;
   std::optional<capture::FrameSet> first_set;
   if (auto_distance) {
-    choice = capture::ChooseSceneDistanceForRecording(rig, source.get(), c.start, c.frames, options);
-    if (!choice) {
-      first_set = source->Next();
-      std::vector<std::vector<cv::Mat>> sets;
-      if (first_set) {
-        std::vector<cv::Mat>& images = sets.emplace_back();
-        for (const auto& f : first_set->frames) images.push_back(f.image);
-      }
-      choice = capture::ChooseSceneDistance(rig, sets, options);
-    }
+    choice = ChooseDistance(c, rig, source.get(), options, &first_set);
     options.scene_distance_m = choice->distance_m;
     if (!c.json) std::cout << choice->Summary() << "\n";
   }
@@ -214,9 +227,7 @@ int RunStitch(const StitchCommand& c) {
     if (ms.empty()) throw Error(c.in.empty() ? c.rig : c.in, "delivered no frames to stitch");
   }
 
-  std::vector<double> sorted = ms;
-  std::sort(sorted.begin(), sorted.end());
-  const double median = sorted.empty() ? 0 : sorted[(sorted.size() - 1) / 2];
+  const double median = Median(ms);
   const auto stats = source->stats();
   if (c.json) {
     std::cout << nlohmann::json{{"rig", c.rig},

@@ -16,7 +16,7 @@
 
 #include <spdlog/fmt/fmt.h>
 
-#include "app/cli/bench_common.h"
+#include "app/bench/bench_common.h"
 #include "capture/rig.h"
 #include "capture/source.h"
 #include "core/timing.h"
@@ -176,7 +176,7 @@ class StageProgress {
   bool tty_ = ::isatty(STDERR_FILENO) != 0;
 };
 
-// odvr bench reconstruct --equirect (app/cli/bench_reconstruct_equirect.cpp).
+// odvr bench reconstruct --equirect (app/bench/bench_reconstruct_equirect.cpp).
 struct EquirectBenchOptions {
   std::string dataset, colmap = "colmap", out_dir;
   long frames = 0;  // 0: every frame of the ground truth

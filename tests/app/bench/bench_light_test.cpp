@@ -1,4 +1,4 @@
-// `odvr bench light --report-only` on rows written by hand: the sunny-map tables pick, per map, the
+// The light bench's report on rows written by hand: the sunny-map tables pick, per map, the
 // cheapest `sg+peaks` row that beats SH order 8 of the same width on all three convolved errors,
 // and say honestly whether it took less time.
 #include <gtest/gtest.h>
@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "app/bench/bench_light.h"
 #include "tests/app/run_odvr.h"
 
 namespace {
@@ -23,12 +24,15 @@ const char* kHeader =
     "# odvr bench light on a test\n"
     "map\twidth\tmethod\tdevice\tparam\tcoefficients\tms\trel_l2\tdiffuse\tglossy20\tglossy200\n";
 
-// `odvr bench light --report-only` on these TSV rows (after the header); the lighting.md it writes.
+// The bench's report alone (`odvr bench light --report-only`, called as the library it is) on these
+// TSV rows (after the header); the lighting.md it writes.
 std::string ReportFrom(const std::string& name, const std::string& rows) {
   ScratchDir scratch(name);
   std::ofstream(scratch.dir / "lighting.tsv") << kHeader << rows;
-  const auto run = RunOdvr("bench light --report-only --out " + scratch.dir.string());
-  EXPECT_EQ(run.exit_code, 0) << run.err;
+  odvr::app::BenchLightOptions options;
+  options.report_only = true;
+  options.out_dir = scratch.dir.string();
+  EXPECT_EQ(odvr::app::RunBenchLight(options), 0);
   return ReadText(scratch.dir / "lighting.md");
 }
 

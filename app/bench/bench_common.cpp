@@ -1,4 +1,4 @@
-#include "app/cli/bench_common.h"
+#include "app/bench/bench_common.h"
 
 #include <spdlog/fmt/fmt.h>
 #include <spdlog/spdlog.h>

@@ -32,8 +32,9 @@
 #include <tuple>
 #include <vector>
 
-#include "app/cli/bench_common.h"
-#include "app/cli/commands.h"
+#include "app/bench/bench_common.h"
+#include "app/bench/bench_stitch.h"
+#include "app/flags/command_flags.h"
 #include "capture/rig.h"
 #include "capture/stitcher.h"
 #include "core/atomic_file.h"
@@ -48,16 +49,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-struct BenchStitchOptions {
-  std::string dataset = (fs::path(ODVR_SOURCE_DIR) / ".." / "shared" / "data" / "street_a").lexically_normal().string();
-  std::vector<int> frames = {0, 8, 16, 24, 32};
-  int width = 1024, height = 512;
-  int repeats = 3;
-  double scene_distance_m = 0;
-  bool gpu = false;
-  std::string out_dir = kBenchOutDir;
-};
 
 // Where an odvr stitch's time goes (capture::StitchReport), each the median of the repeats.
 constexpr std::array<const char*, 7> kStageNames = {"prepare", "gains",      "warp",    "fill",
@@ -432,6 +423,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchStitchOptions& o, cons
   WritePlot(o.out_dir, "stitch", 900, 520, gp.str(), "bench stitch");
 }
 
+}  // namespace
+
 int RunBenchStitch(const BenchStitchOptions& o) {
   const fs::path dataset = o.dataset;
   if (!fs::exists(dataset / "rig.json"))
@@ -521,8 +514,6 @@ int RunBenchStitch(const BenchStitchOptions& o) {
             << "/stitch.md, stitch.tsv, stitch_stages.tsv, stitch.png\n";
   return 0;
 }
-
-}  // namespace
 
 CommandFn AddBenchStitch(CLI::App* sub) {
   auto o = std::make_shared<BenchStitchOptions>();

@@ -18,9 +18,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "app/cli/bench_common.h"
-#include "app/cli/bench_long_clip.h"
-#include "app/cli/bench_sfm.h"
+#include "app/bench/bench_common.h"
+#include "app/bench/bench_long_clip.h"
+#include "app/bench/bench_sfm.h"
 #include "capture/equirect_view.h"
 #include "capture/stitcher.h"
 #include "core/atomic_file.h"

@@ -1,7 +1,7 @@
 // `odvr render` and `odvr bench render` take the renderer's switches from one declaration
-// (app/cli/render_switches.h): each flag must reach its RenderOptions field, a value out of range
+// (app/flags/render_switches.h): each flag must reach its RenderOptions field, a value out of range
 // must be refused naming the flag, and a bench's table must name exactly the flags it ran with.
-#include "app/cli/render_switches.h"
+#include "app/flags/render_switches.h"
 
 #include <gtest/gtest.h>
 

@@ -180,7 +180,7 @@ TEST(BenchRenderGL, StudioDiffuseIsWithinTenPercentOfCycles) {
 }
 
 // street_a's frame-10 reference stands on Cycles' catcher, whose albedo the dataset does not state
-// (0.2, recovered by rendering the reference again in Cycles: app/cli/bench_render.cpp). Seen from the
+// (0.2, recovered by rendering the reference again in Cycles: app/bench/bench_render.cpp). Seen from the
 // car below the horizon that plane, not the panorama's road, is what Cycles lit it with; the bench
 // gives the renderer the same (the default) or the road (--no-ground-bounce). Measured at the
 // default configuration: 0.099 (bias 0.989) against 0.108 (0.955).

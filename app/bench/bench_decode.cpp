@@ -22,8 +22,9 @@
 #include <vector>
 
 #include "app/ar/demo_media.h"
-#include "app/cli/bench_common.h"
-#include "app/cli/commands.h"
+#include "app/bench/bench_common.h"
+#include "app/bench/bench_decode.h"
+#include "app/flags/command_flags.h"
 #include "capture/libav_video.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -34,12 +35,6 @@ namespace odvr::app {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct BenchDecodeOptions {
-  std::vector<std::string> clips;  // default: the demo and ../shared/data/video360's videos
-  long max_frames = 300;
-  std::string out_dir = kBenchOutDir;
-};
 
 // One reader on one clip.
 struct DecodeRun {
@@ -253,6 +248,8 @@ void WriteReport(const BenchDecodeOptions& o, const std::vector<DecodeRow>& rows
   WritePlot(o.out_dir, "decode", 900, 480, gp.str(), "bench decode");
 }
 
+}  // namespace
+
 int RunBenchDecode(const BenchDecodeOptions& options) {
   BenchDecodeOptions o = options;
   if (o.max_frames < 3) throw UsageError("--max-frames", "must be at least 3");
@@ -283,8 +280,6 @@ int RunBenchDecode(const BenchDecodeOptions& options) {
   std::cout << "bench decode: wrote " << o.out_dir << "/decode.md, decode.tsv, decode.png\n";
   return 0;
 }
-
-}  // namespace
 
 CommandFn AddBenchDecode(CLI::App* sub) {
   auto o = std::make_shared<BenchDecodeOptions>();

@@ -17,9 +17,10 @@
 #include <set>
 #include <sstream>
 
-#include "app/cli/bench_common.h"
-#include "app/cli/commands.h"
-#include "app/cli/transform_tuning.h"
+#include "app/bench/bench_common.h"
+#include "app/bench/bench_light.h"
+#include "app/flags/command_flags.h"
+#include "app/flags/transform_tuning.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "engine/gl/context.h"
@@ -37,30 +38,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using lighting::LightingErrors;
-
-struct BenchLightOptions {
-  std::vector<std::string> maps;
-  std::vector<int> widths = {1024, 2048};
-  int max_levels = 6;
-  int only_levels = 0;  // 0: every level count up to max_levels
-  bool skip_peaks = false;
-  int repeats = 3;
-  // Timed runs continue past `repeats` until this much time has passed (at most kMaxRuns): with
-  // three runs, SH 8's median, the same work on every map, read 0.75–1.22 ms across the maps.
-  double min_time_ms = 100;
-  bool gpu = false;
-  // Before each GPU row, untimed calls for this long (WarmUp).
-  double gpu_warm_up_ms = 200;
-  bool least_squares = true;
-  // SH projects an area-resampled copy of the same frame the SG model gets, at this width, and
-  // its time includes that resampling. From a 2048-wide frame, SH 8 and 16 projected at 256 wide
-  // are within 1 % of their errors projected at full width on sky, park, sunset and bridge; at
-  // 128 the diffuse error grows 3-12 % (bridge: 3x).
-  int sh_width = 256;
-  std::string out_dir = kBenchOutDir;
-  bool report_only = false;
-  lighting::ResidualTransformOptions transform;  // the tuning flags (AddTransformTuning)
-};
 
 constexpr int kMaxRuns = 500;
 
@@ -120,56 +97,56 @@ lighting::PeakDetection DetectPeaksAsTheBuilderDoes(const sphere::EquirectImage&
   return lighting::DetectPeaks(sphere::ResampleArea(frame, w, h), defaults.peaks);
 }
 
-// The figures issue 3 sets targets for, computed from the rows (never typed in by hand).
-std::string Targets(const std::vector<Row>& rows) {
-  const auto find = [&](const std::string& map, int width, const std::string& method, const std::string& device,
-                        int param) -> const Row* {
+// The bench's rows, found by (map, width, method, device, param), and the maps and SG widths
+// they cover.
+struct RowIndex {
+  explicit RowIndex(const std::vector<Row>& all) : rows(all) {
+    for (const auto& r : rows) {
+      maps.insert(r.map);
+      if (r.method == "sg") widths.insert(r.width);
+    }
+  }
+  const Row* Find(const std::string& map, int width, const std::string& method, const std::string& device,
+                  int param) const {
     for (const auto& r : rows)
       if (r.map == map && r.width == width && r.method == method && r.device == device && r.param == param) return &r;
     return nullptr;
-  };
+  }
+  int Widest() const { return widths.empty() ? 0 : *widths.rbegin(); }
+
+  const std::vector<Row>& rows;
   std::set<std::string> maps;
   std::set<int> widths;
-  for (const auto& r : rows) {
-    maps.insert(r.map);
-    if (r.method == "sg") widths.insert(r.width);
+};
+
+// Target 1: through level 4 (levels = 5), each convolved error within 1.5x of the least-squares
+// `optimum`, >= 100x faster; per map at the widest width.
+void WriteOptimumRatios(const RowIndex& index, const std::string& method, const std::string& optimum,
+                        std::ostream& md) {
+  md << "| map | diffuse | glossy20 | glossy200 | time ratio (LS / transform) |\n|---|---|---|---|---|\n";
+  std::vector<double> worst;
+  for (const auto& m : index.maps) {
+    const Row* sg = index.Find(m, index.Widest(), method, "cpu", 5);
+    // The optimum fitted to the same frame (TSVs from before it had a row per width hold one,
+    // fitted to the native map; it stands in then).
+    const Row* ls = index.Find(m, index.Widest(), optimum, "cpu", 5);
+    for (const auto& r : index.rows)
+      if (!ls && r.map == m && r.method == optimum && r.param == 5) ls = &r;
+    if (!sg || !ls) continue;
+    const double d = sg->e.diffuse / ls->e.diffuse, g20 = sg->e.glossy20 / ls->e.glossy20,
+                 g200 = sg->e.glossy200 / ls->e.glossy200;
+    worst.push_back(std::max({d, g20, g200}));
+    md << "| " << m << " | " << fmt::format("{:.2f}", d) << " | " << fmt::format("{:.2f}", g20) << " | "
+       << fmt::format("{:.2f}", g200) << " | " << fmt::format("{:.0f}", ls->ms / sg->ms) << " |\n";
   }
-  std::ostringstream md;
-  md << "\n## Targets (issue 3), from the rows above\n\n";
-  // 1. Through level 4 (levels = 5), each convolved error within 1.5x of least squares, >= 100x faster.
-  const int wide = widths.empty() ? 0 : *widths.rbegin();
-  const auto ratio_table = [&](const std::string& method, const std::string& optimum) {
-    md << "| map | diffuse | glossy20 | glossy200 | time ratio (LS / transform) |\n|---|---|---|---|---|\n";
-    std::vector<double> worst;
-    for (const auto& m : maps) {
-      const Row* sg = find(m, wide, method, "cpu", 5);
-      // The optimum fitted to the same frame (TSVs from before it had a row per width hold one,
-      // fitted to the native map; it stands in then).
-      const Row* ls = find(m, wide, optimum, "cpu", 5);
-      for (const auto& r : rows)
-        if (!ls && r.map == m && r.method == optimum && r.param == 5) ls = &r;
-      if (!sg || !ls) continue;
-      const double d = sg->e.diffuse / ls->e.diffuse, g20 = sg->e.glossy20 / ls->e.glossy20,
-                   g200 = sg->e.glossy200 / ls->e.glossy200;
-      worst.push_back(std::max({d, g20, g200}));
-      md << "| " << m << " | " << fmt::format("{:.2f}", d) << " | " << fmt::format("{:.2f}", g20) << " | "
-         << fmt::format("{:.2f}", g200) << " | " << fmt::format("{:.0f}", ls->ms / sg->ms) << " |\n";
-    }
-    if (!worst.empty())
-      md << "\nMaps with every ratio within 1.5: "
-         << std::count_if(worst.begin(), worst.end(), [](double w) { return w <= 1.5; }) << " of " << worst.size()
-         << "; median of the worst ratio per map " << fmt::format("{:.2f}", Median(worst)) << ".\n\n";
-  };
-  md << "**Against the least-squares optimum, through level 4** (5 levels, 4092 SGs + constant; `sg` = the "
-        "transform alone on the same basis; ratio = transform error / optimum error, per map, at the widest "
-        "width, the optimum fitted to the same enlarged frame):\n\n";
-  ratio_table("sg", "least-squares");
-  if (std::any_of(rows.begin(), rows.end(), [](const Row& r) { return r.method == "least-squares+peaks"; })) {
-    md << "**With peaks, against the optimum on the same basis** (`sg+peaks` against `least-squares+peaks`: the "
-          "same peaks, detected as the transform's builder detects them, and least-squares amplitudes of the same "
-          "SRBFs for what the detector leaves of the frame):\n\n";
-    ratio_table("sg+peaks", "least-squares+peaks");
-  }
+  if (!worst.empty())
+    md << "\nMaps with every ratio within 1.5: "
+       << std::count_if(worst.begin(), worst.end(), [](double w) { return w <= 1.5; }) << " of " << worst.size()
+       << "; median of the worst ratio per map " << fmt::format("{:.2f}", Median(worst)) << ".\n\n";
+}
+
+// Target 2, and that no error grows when a level is added.
+void WriteDiffuseAndGrowth(const RowIndex& index, std::ostream& md) {
   // 2. Diffuse <= 1 % from level 2 on; no error grows when a level is added. The errors are against
   // the native map, but the transform sees the enlarged frame: a model converging on the frame
   // converges on the frame's own error (the `input` row), so a rise that stays within it is not
@@ -179,21 +156,21 @@ std::string Targets(const std::vector<Row>& rows) {
   };
   std::map<std::string, DiffuseCount> diffuse;
   int growths = 0, growths_within_input = 0, sequences = 0;
-  for (const auto& m : maps)
-    for (int w : widths) {
-      const Row* input = find(m, w, "input", "cpu", 0);
+  for (const auto& m : index.maps)
+    for (int w : index.widths) {
+      const Row* input = index.Find(m, w, "input", "cpu", 0);
       for (const char* method : {"sg", "sg+peaks"}) {
         const Row* previous = nullptr;
         bool grew = false, grew_within_input = false;
         for (int levels = 1; levels <= 6; ++levels) {
-          const Row* r = find(m, w, method, "cpu", levels);
+          const Row* r = index.Find(m, w, method, "cpu", levels);
           if (!r) continue;
           if (levels >= 3) {
             DiffuseCount& d = diffuse[method];
             ++d.total;
             d.ok += r->e.diffuse <= 0.01;
             const Row* optimum =
-                find(m, w, std::string(method) == "sg" ? "least-squares" : "least-squares+peaks", "cpu", levels);
+                index.Find(m, w, std::string(method) == "sg" ? "least-squares" : "least-squares+peaks", "cpu", levels);
             if (r->e.diffuse > 0.01 && optimum) {
               ++d.optimum_fitted;
               d.optimum_over += optimum->e.diffuse > 0.01;
@@ -236,11 +213,15 @@ std::string Targets(const std::vector<Row>& rows) {
      << " level sequences, and in " << growths_within_input
      << " more it rose but stayed within the frame's own error against the native map (the `input` row: the "
         "model converges on the frame it is given).\n\n";
+}
+
+// Target 3: on sunny maps, SG with peaks against SH order 8 of the same frame.
+void WriteSunnyAgainstSh8(const RowIndex& index, std::ostream& md) {
   // 3. Sunny maps: SG with peaks against SH order 8, each from the same frame (TSVs written before
   // SH had a row per width hold one SH row per map, from the native map; it stands in then).
   const auto sh8 = [&](const std::string& map, int width) -> const Row* {
     const Row* any = nullptr;
-    for (const auto& r : rows)
+    for (const auto& r : index.rows)
       if (r.map == map && r.method == "sh" && r.param == 8) {
         if (r.width == width) return &r;
         if (!any) any = &r;
@@ -254,8 +235,8 @@ std::string Targets(const std::vector<Row>& rows) {
   md << "**Sunny maps: `sg+peaks` (5 levels, widest width) against SH order 8:**\n\n| map | diffuse | glossy20 | "
         "glossy200 | ms (SG / SH) |\n|---|---|---|---|---|\n";
   for (const char* m : sunny) {
-    const Row* sg = find(m, wide, "sg+peaks", "cpu", 5);
-    const Row* sh = sh8(m, wide);
+    const Row* sg = index.Find(m, index.Widest(), "sg+peaks", "cpu", 5);
+    const Row* sh = sh8(m, index.Widest());
     if (!sg || !sh) continue;
     md << "| " << m << " | " << Fmt(sg->e.diffuse) << " / " << Fmt(sh->e.diffuse) << " | " << Fmt(sg->e.glossy20)
        << " / " << Fmt(sh->e.glossy20) << " | " << Fmt(sg->e.glossy200) << " / " << Fmt(sh->e.glossy200) << " | "
@@ -271,7 +252,7 @@ std::string Targets(const std::vector<Row>& rows) {
     const Row* best = nullptr;
     const Row* best_sh = nullptr;
     bool any = false;
-    for (const auto& r : rows) {
+    for (const auto& r : index.rows) {
       if (r.map != m || r.method != "sg+peaks" || r.device != "cpu") continue;
       any = true;
       const Row* sh = sh8(m, r.width);
@@ -292,10 +273,29 @@ std::string Targets(const std::vector<Row>& rows) {
   }
   if (sunny_maps)
     md << "\nBetter on all three errors at less time than SH 8: " << faster << " of " << sunny_maps << " sunny maps.\n";
+}
+
+// The figures issue 3 sets targets for, computed from the rows (never typed in by hand).
+std::string Targets(const std::vector<Row>& rows) {
+  const RowIndex index(rows);
+  std::ostringstream md;
+  md << "\n## Targets (issue 3), from the rows above\n\n";
+  md << "**Against the least-squares optimum, through level 4** (5 levels, 4092 SGs + constant; `sg` = the "
+        "transform alone on the same basis; ratio = transform error / optimum error, per map, at the widest "
+        "width, the optimum fitted to the same enlarged frame):\n\n";
+  WriteOptimumRatios(index, "sg", "least-squares", md);
+  if (std::any_of(rows.begin(), rows.end(), [](const Row& r) { return r.method == "least-squares+peaks"; })) {
+    md << "**With peaks, against the optimum on the same basis** (`sg+peaks` against `least-squares+peaks`: the "
+          "same peaks, detected as the transform's builder detects them, and least-squares amplitudes of the same "
+          "SRBFs for what the detector leaves of the frame):\n\n";
+    WriteOptimumRatios(index, "sg+peaks", "least-squares+peaks", md);
+  }
+  WriteDiffuseAndGrowth(index, md);
+  WriteSunnyAgainstSh8(index, md);
   // 4. CPU time of a 2048x1024 frame to 5 levels.
   std::vector<double> ms;
-  for (const auto& m : maps)
-    if (const Row* r = find(m, 2048, "sg", "cpu", 5)) ms.push_back(r->ms);
+  for (const auto& m : index.maps)
+    if (const Row* r = index.Find(m, 2048, "sg", "cpu", 5)) ms.push_back(r->ms);
   if (!ms.empty())
     md << "\n**CPU, 2048x1024 to 5 levels (no peaks):** median " << fmt::format("{:.1f}", Median(ms)) << " ms over "
        << ms.size() << " maps (target: under 30 ms).\n";
@@ -418,6 +418,8 @@ void WriteReport(const std::vector<Row>& rows, const BenchLightOptions& o, const
   gp << "unset multiplot\n";
   WritePlot(o.out_dir, "lighting", 1200, 520, gp.str(), "bench light");
 }
+
+}  // namespace
 
 int RunBenchLight(BenchLightOptions o) {
   if (o.report_only) {
@@ -545,8 +547,6 @@ int RunBenchLight(BenchLightOptions o) {
             << "lighting.png\n";
   return 0;
 }
-
-}  // namespace
 
 CommandFn AddBenchLight(CLI::App* sub) {
   auto o = std::make_shared<BenchLightOptions>();

@@ -1,8 +1,8 @@
-#include "app/cli/transform_tuning.h"
+#include "app/flags/transform_tuning.h"
 
 #include <string>
 
-#include "app/cli/commands.h"
+#include "app/flags/command_flags.h"
 
 namespace odvr::app {
 

@@ -1,4 +1,4 @@
-#include "app/cli/bench_long_clip.h"
+#include "app/bench/bench_long_clip.h"
 
 #include <fmt/format.h>
 
@@ -9,8 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "app/cli/bench_common.h"
-#include "app/cli/bench_sfm.h"
+#include "app/bench/bench_common.h"
+#include "app/bench/bench_sfm.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/timing.h"

@@ -11,28 +11,20 @@
 #include <sstream>
 
 #include "app/ar/car_rendering.h"
-#include "app/cli/bench_common.h"
-#include "app/cli/commands.h"
+#include "app/ar/demo_media.h"
+#include "app/bench/bench_common.h"
+#include "app/bench/bench_player.h"
+#include "app/flags/command_flags.h"
 #include "app/player/live_player.h"
 #include "app/player/player.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/size_text.h"
 #include "engine/gl/context.h"
 #include "engine/gl/objects.h"
 
 namespace odvr::app {
 namespace {
-
-struct BenchPlayerOptions {
-  std::string size = "1280x720";
-  int frames = 8;
-  std::string drive = "W:2s,A:1s";
-  std::string out = std::string(kBenchOutDir) + "/player.md";
-  int levels = 4, voxels = 64;
-  int shading_rate = PlayerOptions{}.shading_rate;
-  bool live = false;
-  CLI::Option* size_option = nullptr;
-};
 
 // The live-mode section of the table (RunBenchLive) survives a rerun of the recorded bench, and
 // the other way round.
@@ -45,6 +37,9 @@ std::string ExistingLiveSection(const std::string& path) {
   return at == std::string::npos ? "" : text.substr(at);
 }
 
+}  // namespace
+
+// The --live section of the page; RunBenchPlayer's, named after the GL renderer it ran on.
 int RunBenchLive(const BenchPlayerOptions& b, const std::string& gl_renderer);
 
 int RunBenchPlayer(const BenchPlayerOptions& b) {
@@ -199,8 +194,6 @@ int RunBenchLive(const BenchPlayerOptions& b, const std::string& gl_renderer) {
   std::cout << md.str();
   return 0;
 }
-
-}  // namespace
 
 CommandFn AddBenchPlayer(CLI::App* sub) {
   auto b = std::make_shared<BenchPlayerOptions>();

@@ -1,6 +1,6 @@
-#include "app/cli/render_switches.h"
+#include "app/flags/render_switches.h"
 
-#include "app/cli/commands.h"
+#include "app/flags/command_flags.h"
 
 namespace odvr::app {
 

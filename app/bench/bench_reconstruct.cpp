@@ -31,9 +31,10 @@
 #include <string>
 #include <vector>
 
-#include "app/cli/bench_common.h"
-#include "app/cli/bench_sfm.h"
-#include "app/cli/commands.h"
+#include "app/bench/bench_common.h"
+#include "app/bench/bench_reconstruct.h"
+#include "app/bench/bench_sfm.h"
+#include "app/flags/command_flags.h"
 #include "capture/rig.h"
 #include "capture/source.h"
 #include "core/atomic_file.h"
@@ -51,18 +52,6 @@ using Clock = std::chrono::steady_clock;
 // and the next two frames' (seconds of video at 25 fps are far more than the 60° between
 // neighbouring cameras needs to overlap).
 constexpr int kMatchFrames = 3;
-
-struct BenchReconstructOptions {
-  std::string dataset = (fs::path(ODVR_SOURCE_DIR) / ".." / "shared" / "data" / "street_a").lexically_normal().string();
-  long frames = 0;  // 0: every frame of the dataset
-  bool no_colmap = false, colmap_only = false, report_only = false, keep_workspace = false;
-  bool equirect = false;  // one 360° camera: bench_reconstruct_equirect.cpp
-  int crf = 23, track_width = 1024;
-  long clip_frames = 60;
-  long long_frames = 600;
-  std::string colmap = "colmap";
-  std::string out_dir = kBenchOutDir;
-};
 
 std::vector<tracking::TrajectoryPose> GroundTruth(const fs::path& dataset) {
   const fs::path path = dataset / "trajectory_gt.json";
@@ -245,6 +234,8 @@ void WriteReport(const Results& r, const BenchReconstructOptions& o) {
   WriteTrajectoryPlot(r, dir, "tracking", "bench reconstruct");
 }
 
+}  // namespace
+
 int RunBenchReconstruct(const BenchReconstructOptions& o) {
   if (o.equirect) {
     if (o.colmap_only || o.report_only) throw UsageError("--equirect", "runs whole: no --colmap-only, --report-only");
@@ -330,8 +321,6 @@ int RunBenchReconstruct(const BenchReconstructOptions& o) {
   std::cout << "bench reconstruct: wrote " << o.out_dir << "/tracking.md, tracking.tsv, tracking.png\n";
   return 0;
 }
-
-}  // namespace
 
 CommandFn AddBenchReconstruct(CLI::App* sub) {
   auto o = std::make_shared<BenchReconstructOptions>();

@@ -1,6 +1,6 @@
 // The pieces `odvr bench reconstruct` and its one-camera mode share: result rows and their TSVs,
 // trajectory scoring, progress, and COLMAP run through its command line and read back.
-#include "app/cli/bench_sfm.h"
+#include "app/bench/bench_sfm.h"
 
 #include <spdlog/spdlog.h>
 #include <sys/wait.h>
@@ -17,7 +17,7 @@
 #include <optional>
 #include <sstream>
 
-#include "app/cli/bench_common.h"
+#include "app/bench/bench_common.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/timing.h"
