@@ -55,9 +55,8 @@ std::vector<double> TimedRuns(const BenchLightOptions& o, Run run) {
 }
 
 // Untimed calls of `run` until `ms` have passed, at least one (it builds the overlap lists). A GPU
-// left idle through the CPU rows lowers its clocks, and the first calls after pay for it: on the
-// H200 the 1- and 2-level `gpu-resident` rows read 2.0–2.1 ms, above the 4-level row's 0.83
-// (docs/benchmarks/h200.md).
+// left idle through the CPU rows lowers its clocks, and the first calls after pay for it: without
+// the warm-up, rows with fewer levels read slower than rows with more.
 template <class Run>
 void WarmUp(double ms, Run run) {
   const auto start = std::chrono::steady_clock::now();
