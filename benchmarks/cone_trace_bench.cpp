@@ -15,6 +15,7 @@
 #include <random>
 #include <vector>
 
+#include "core/constants.h"
 #include "core/error.h"
 #include "engine/lighting/sg.h"
 #include "engine/scene/gltf_scene.h"
@@ -25,7 +26,6 @@
 namespace odvr::bench {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kResolution = 128;  // the renderer's default voxel_resolution
 constexpr int kQueries = 64;
 constexpr int kStrata = 48;  // kStrata² rays per query for the truth

@@ -12,13 +12,13 @@
 #include <span>
 #include <vector>
 
+#include "core/constants.h"
 #include "engine/lighting/sg.h"
 
 namespace odvr::bench {
 namespace {
 
 using lighting::Sg;
-constexpr double kPi = 3.14159265358979323846;
 
 // Gauss–Legendre nodes and weights on [−1, 1] (Newton on P_n).
 struct GaussLegendre {
