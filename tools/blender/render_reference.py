@@ -11,6 +11,16 @@ Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
   the committed set (media/reference/, see media/README.md):
     blender -b --factory-startup --python tools/blender/render_reference.py -- --reference-set media/reference
 
+  the generalization set (issue 42), one model per run, resumable (a finished image is skipped):
+    for car in media/demo/car.glb ../shared/data/gltf/kenney/police/police.glb ../shared/data/gltf/ToyCar.glb; do
+      blender -b --factory-startup --python tools/blender/render_reference.py -- \
+          --generalization-set /tmp/gen --model "$car"
+    done
+    every map of ../shared/data/env x the model's own materials, a glossy and a diffuse paint x
+    both ground set-ups: "catcher" (the plane below, as above) and "none" (the model alone under
+    the whole map, odvr render's default). The camera frames the model as odvr render's default
+    camera does (from its front-left, a little above, 3.2 bounding radii off, 40 degrees).
+
   the orientation check of the environment map (writes DIR/verify_env.json):
     blender -b --factory-startup --python tools/blender/render_reference.py -- --verify-env media/reference
 
@@ -100,6 +110,9 @@ def parse_args():
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--out", help="output prefix (PREFIX.exr, PREFIX_mask.exr, PREFIX_shadow.exr, PREFIX.json)")
     p.add_argument("--reference-set", metavar="DIR", help="render the committed reference set into DIR")
+    p.add_argument("--generalization-set", metavar="DIR",
+                   help="render --model under every map of --envs-dir, every material, both grounds into DIR/<model>")
+    p.add_argument("--envs-dir", default=None, help="maps of the generalization set (default ../shared/data/env)")
     p.add_argument("--verify-env", metavar="DIR", help="check the environment orientation, write DIR/verify_env.json")
     a = p.parse_args(argv)
     a.w, a.h = (int(v) for v in a.size.lower().split("x"))
@@ -439,7 +452,9 @@ class Renderer:
         os.makedirs(self.tmpdir, exist_ok=True)
         setup_compositor(self.scene, self.tmpdir)
 
-    def render(self, out_prefix, env, R_odvr, strength, camera, w, h, spp, seeds, material):
+    def render(self, out_prefix, env, R_odvr, strength, camera, w, h, spp, seeds, material, ground="catcher"):
+        if self.catcher:
+            self.catcher.hide_render = ground == "none"
         env_info = set_env(self.env_node, self.mapping, self.bg, env, R_odvr, strength, self.scene, self.tmpdir)
         cam_info = set_camera(self.scene, self.cam, camera, w, h)
         if self.switch:
@@ -474,7 +489,7 @@ class Renderer:
                 "env": env, "env_info": env_info, "env_world_from_env_odvr": [list(r) for r in R_odvr],
                 "env_strength": strength, "camera": cam_info, "size": [w, h], "spp_per_seed": spp,
                 "seeds": seeds, "spp_total": spp * len(seeds), "render_seconds": [round(t, 2) for t in times],
-                "material": material,
+                "material": material, "ground": ground,
                 "mask_coverage": float(mean["mask"][:, :, 0].mean()),
                 "cycles_alpha_mean": float(coverage.mean()),
                 "mask_vs_cycles_alpha_max_abs_diff": float(np.abs(mean["mask"][:, :, 0] - coverage).max()),
@@ -641,6 +656,55 @@ def reference_set(out_dir, threads, spp=None):
           "images": entries}
     write_json(os.path.join(out_dir, "references.json"), js)
 
+def default_camera(box_odvr, vfov_deg=40.0):
+    """odvr render's default camera (app/cli/run_render.cpp, DefaultCamera): the model's bounding box
+    seen from its front-left, a little above, 3.2 bounding radii from its centre."""
+    lo, hi = np.array(box_odvr[0]), np.array(box_odvr[1])
+    centre = 0.5 * (lo + hi)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
+    d = np.array([0.75, 0.35, 0.9])
+    eye = centre + 3.2 * radius * d / np.linalg.norm(d)
+    return [*map(float, eye), *map(float, centre), vfov_deg]
+
+
+GENERALIZATION = {"size": (320, 180), "spp": 256, "seeds": [1, 2], "materials": ["as-is", "glossy", "diffuse"],
+                  "grounds": ["catcher", "none"]}
+
+
+def generalization_set(out_root, model, envs_dir, threads, spp=None):
+    """One model under every map, material and ground; DIR/<model>/set.json lists what is done.
+    An image whose JSON exists is kept, so an interrupted run goes on where it stopped."""
+    g = dict(GENERALIZATION, spp=spp or GENERALIZATION["spp"])
+    model_name = os.path.splitext(os.path.basename(model))[0]
+    out_dir = os.path.join(out_root, model_name)
+    os.makedirs(out_dir, exist_ok=True)
+    envs = sorted(f for f in os.listdir(envs_dir) if f.endswith((".exr", ".hdr")))
+    r = Renderer(model, threads, 60.0, 0.18, DEFAULT_PAINT)
+    camera = default_camera(r.box)
+    R = world_from_env_odvr(0.0)
+    entries, t0 = [], time.time()
+    for env_file in envs:
+        for mat in g["materials"]:
+            for ground in g["grounds"]:
+                name = f"{os.path.splitext(env_file)[0]}_{mat}_{ground}"
+                prefix = os.path.join(out_dir, name)
+                if os.path.exists(prefix + ".json"):
+                    with open(prefix + ".json") as f:
+                        entries.append(json.load(f))
+                    continue
+                info = r.render(prefix, os.path.join(envs_dir, env_file), R, 1.0, camera, *g["size"], g["spp"],
+                                g["seeds"], mat, ground)
+                info.update(name=name, env=env_file, model=os.path.abspath(model), model_box_odvr=r.box)
+                write_json(prefix + ".json", info)
+                entries.append(info)
+                print(f"{model_name}/{name}: {sum(info['render_seconds']):.1f} s, noise "
+                      f"{info.get('noise', {}).get('mean_of_seeds_car_mean_rel', float('nan')):.4f}", flush=True)
+    write_json(os.path.join(out_dir, "set.json"),
+               {"what": "Cycles references of one model under every map, material and ground (issue 42)",
+                "model": os.path.abspath(model), "model_box_odvr": r.box, "camera": camera, "settings": g,
+                "seconds_this_run": round(time.time() - t0, 1), "images": [e["name"] for e in entries]})
+
+
 
 def main():
     a = parse_args()
@@ -649,6 +713,14 @@ def main():
         sys.exit(0 if ok else 1)
     if a.reference_set:
         reference_set(a.reference_set, a.threads, a.spp)
+        return
+    if a.generalization_set:
+        if not a.model:
+            print("render_reference.py: --generalization-set needs --model")
+            sys.exit(2)
+        repo = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
+        envs_dir = a.envs_dir or os.path.normpath(os.path.join(repo, "..", "shared", "data", "env"))
+        generalization_set(a.generalization_set, a.model, envs_dir, a.threads, a.spp)
         return
     if not (a.model and a.env and a.out):
         print("render_reference.py: --model, --env and --out are needed (or --reference-set / --verify-env)")
