@@ -23,6 +23,7 @@
 #include "app/flags/command_flags.h"
 #include "app/flags/render_switches.h"
 #include "core/atomic_file.h"
+#include "core/constants.h"
 #include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
@@ -80,15 +81,15 @@ void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo, d
   const int w = env->width, h = env->height;
   glm::dvec3 e(0);
   for (int y = 0; y < h; ++y) {
-    const double lat = 3.14159265358979323846 * (0.5 - (y + 0.5) / h);
+    const double lat = kPi * (0.5 - (y + 0.5) / h);
     if (lat <= 0) continue;
-    const double d_omega = (2 * 3.14159265358979323846 / w) * (3.14159265358979323846 / h) * std::cos(lat);
+    const double d_omega = (2 * kPi / w) * (kPi / h) * std::cos(lat);
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) e[c] += env->at(x, y)[c] * std::sin(lat) * d_omega;
   }
-  const glm::dvec3 radiance = albedo * e / 3.14159265358979323846;
+  const glm::dvec3 radiance = albedo * e / kPi;
   for (int y = h / 2; y < h; ++y) {
-    const double below = 3.14159265358979323846 * ((y + 0.5) / h - 0.5);
+    const double below = kPi * ((y + 0.5) / h - 0.5);
     if (below < keep_below_horizon) continue;
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) env->at(x, y)[c] = static_cast<float>(radiance[c]);
@@ -101,8 +102,7 @@ void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo, d
 // 5° under it, the stand-in 0.80) lit the car's sides in Cycles; replaced, studio_diffuse read 3.8 %
 // dark (docs/notes/render_accuracy.md).
 double KeepBelowHorizon(double mid_height) {
-  const double mean_distance =
-      render::RenderOptions{}.ground_half_size * (4 / 3.14159265358979323846) * std::log(1 + std::sqrt(2.0));
+  const double mean_distance = render::RenderOptions{}.ground_half_size * (4 / kPi) * std::log(1 + std::sqrt(2.0));
   return std::atan2(std::max(mid_height, 0.0), mean_distance);
 }
 

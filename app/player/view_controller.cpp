@@ -4,9 +4,11 @@
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/constants.h"
+
 namespace odvr::app {
 namespace {
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
+constexpr double kDeg = kPi / 180.0;
 double WrapDeg(double a) {
   a = std::fmod(a, 360.0);
   if (a > 180) a -= 360;

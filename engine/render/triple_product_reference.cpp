@@ -7,6 +7,7 @@
 #include <glm/geometric.hpp>
 #include <limits>
 
+#include "core/constants.h"
 #include "core/parallel.h"
 #include "engine/lighting/sg.h"
 #include "engine/render/triple_product_internal.h"
@@ -360,7 +361,7 @@ std::vector<glm::dvec3> PeakRayDirections(const glm::dvec3& axis, double lambda)
 }
 
 double HalfValueAngle(double lambda) {
-  return lambda > std::log(2.0) / 2 ? lighting::HalfValueAngleForLambda(lambda) : 3.14159265358979323846;
+  return lambda > std::log(2.0) / 2 ? lighting::HalfValueAngleForLambda(lambda) : kPi;
 }
 
 void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vector<PixelCounts>* counts) {

@@ -205,8 +205,8 @@ detail::PreparedLighting Prepare(const lighting::SgLighting& model, const glm::d
   for (std::size_t k = 0; k < p.peaks.size(); ++k)
     add(p.peaks[k].amplitude, p.peaks[k].axis, p.peaks[k].lambda, k < TripleProductRenderer::kMaxPeakCones);
   for (double e : peak_e) p.ground_peak_share.push_back(total > 0 ? e / total : 0.0);
-  p.ground_radiance = glm::vec3(e_down / 3.14159265358979323846);
-  p.ground_radiance_traced_peaks = glm::vec3(e_traced / 3.14159265358979323846);
+  p.ground_radiance = glm::vec3(e_down / kPi);
+  p.ground_radiance_traced_peaks = glm::vec3(e_traced / kPi);
   return p;
 }
 
@@ -647,7 +647,7 @@ void TripleProductRenderer::SetEnvironment(const sphere::EquirectImage& equirect
     std::vector<double> weight(lum.size());
     double total = 0;
     for (int y = 0; y < h; ++y) {
-      const double sin_theta = std::sin(3.14159265358979323846 * (y + 0.5) / h);
+      const double sin_theta = std::sin(kPi * (y + 0.5) / h);
       for (int x = 0; x < w; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * w + x;
         weight[i] = (lum[i] + floor_value) * sin_theta;
