@@ -122,13 +122,11 @@ tracking::ReconstructionCallbacks ConsoleProgress(long total_frames) {
   return callbacks;
 }
 
-fs::path CachedClipReconstruction(const ClipInput& in, bool* reused) {
-  in.Check();
+std::string ClipCacheKey(const ClipInput& in, const fs::path& program) {
   std::error_code ec;
   const fs::path clip = fs::absolute(in.clip);
-  if (!fs::exists(clip)) throw Error(in.clip, "no such file or folder");
   std::string key = clip.string();
-  for (const fs::path& p : {clip, in.mask.empty() ? fs::path() : fs::absolute(in.mask)}) {
+  for (const fs::path& p : {clip, in.mask.empty() ? fs::path() : fs::absolute(in.mask), program}) {
     if (p.empty()) continue;
     const auto size = fs::is_regular_file(p, ec) ? fs::file_size(p, ec) : 0;
     const auto time = fs::last_write_time(p, ec).time_since_epoch().count();
@@ -141,6 +139,17 @@ fs::path CachedClipReconstruction(const ClipInput& in, bool* reused) {
   key += options;
   char hex[24];
   std::snprintf(hex, sizeof hex, "%016zx", std::hash<std::string>{}(key));
+  return hex;
+}
+
+fs::path CachedClipReconstruction(const ClipInput& in, bool* reused) {
+  in.Check();
+  std::error_code ec;
+  const fs::path clip = fs::absolute(in.clip);
+  if (!fs::exists(clip)) throw Error(in.clip, "no such file or folder");
+  // The running program is part of the key: a rebuilt or upgraded odvr may track differently,
+  // and poses it did not make must not stand its car in the street.
+  const std::string hex = ClipCacheKey(in, fs::read_symlink("/proc/self/exe", ec));
   const char* xdg = std::getenv("XDG_CACHE_HOME");
   const char* home = std::getenv("HOME");
   const fs::path root = xdg && *xdg     ? fs::path(xdg)

@@ -41,10 +41,14 @@ void CheckChunkFrames(long chunk_frames);
 // a line per 10 frames in a log; stage lines and bundle adjustment iterations through `log`.
 tracking::ReconstructionCallbacks ConsoleProgress(long total_frames);
 
+// The key of `in`'s cached reconstruction when `program` makes it: a hash of the clip's (and the
+// mask's) path, size and time, every option, and the program file's path, size and time.
+std::string ClipCacheKey(const ClipInput& in, const std::filesystem::path& program);
+
 // The folder holding `in`'s reconstruction in the user's cache ($XDG_CACHE_HOME or ~/.cache,
-// odvr/reconstructions/<clip>-<key>, the key covering the file's path, size and time and every
-// option), made on a miss: reconstructed into a temporary folder renamed into place, so an
-// interrupted run leaves no half set. `reused`: whether it was there.
+// odvr/reconstructions/<clip>-<ClipCacheKey with the running executable>), made on a miss:
+// reconstructed into a temporary folder renamed into place, so an interrupted run leaves no half
+// set. `reused`: whether it was there.
 std::filesystem::path CachedClipReconstruction(const ClipInput& in, bool* reused);
 
 }  // namespace odvr::app
