@@ -117,25 +117,29 @@ std::int32_t LittleEndian32(const unsigned char* b) {
   return static_cast<std::int32_t>(b[0] | b[1] << 8 | b[2] << 16 | static_cast<std::uint32_t>(b[3]) << 24);
 }
 
-// Why OpenEXR would read a variable-size value of `size` bytes, at `in`, other than as exactly
-// those bytes; empty when it would not. Most such types ("string", unknown ones) are read as the
-// declared bytes, but four are read by their content: a "chlist" up to its empty channel name
-// (each channel: name NUL, then 16 bytes), a "floatvector" as size / 4 floats, a "stringvector"
-// as (int32 length, bytes) pairs, each allocated at its own length, a "preview" as int32 width and
-// height, then width x height RGBA allocated at once.
-std::string ExrValueProblem(std::ifstream& in, const std::string& type, std::int32_t size) {
-  if (type == "floatvector") return size % 4 ? "is not a whole number of floats" : "";
-  if (type != "chlist" && type != "stringvector" && type != "preview") return {};
-  std::vector<unsigned char> value(static_cast<std::size_t>(size));
-  if (!in.read(reinterpret_cast<char*>(value.data()), size)) return "ends early";
-  in.seekg(-static_cast<std::streamoff>(size), std::ios::cur);
+// The variable-size types OpenEXR reads by their content rather than as the declared bytes (the
+// others, "string" and unknown ones, are read as declared): a "chlist" up to its empty channel
+// name (each channel: name NUL, then 16 bytes), a "stringvector" as (int32 length, bytes) pairs,
+// each allocated at its own length, a "preview" as int32 width and height, then width x height
+// RGBA allocated at once. (A "floatvector", size / 4 floats, needs only its size checked.)
+bool ExrReadsByContent(const std::string& type) {
+  return type == "chlist" || type == "stringvector" || type == "preview";
+}
+
+// Why OpenEXR would read `value`, of a type ExrReadsByContent names, other than as exactly its
+// bytes; empty when it would not.
+std::string ExrValueProblem(const std::string& type, const std::vector<unsigned char>& value) {
   if (type == "preview") {
-    if (size < 8) return "is shorter than a preview's size";
-    const long long width = static_cast<std::uint32_t>(LittleEndian32(&value[0]));
-    const long long height = static_cast<std::uint32_t>(LittleEndian32(&value[4]));
-    if (width * height * 4 != size - 8)
+    if (value.size() < 8) return "is shorter than a preview's size";
+    const unsigned long long width = static_cast<std::uint32_t>(LittleEndian32(&value[0]));
+    const unsigned long long height = static_cast<std::uint32_t>(LittleEndian32(&value[4]));
+    const unsigned long long pixel_bytes = value.size() - 8, pixels = pixel_bytes / 4;
+    // width x height == pixels by division: the product of two 32-bit sizes could overflow.
+    const bool fits = pixel_bytes % 4 == 0 &&
+                      (width == 0 || height == 0 ? pixels == 0 : pixels % width == 0 && pixels / width == height);
+    if (!fits)
       return "claims a preview of " + std::to_string(width) + "x" + std::to_string(height) + " in " +
-             std::to_string(size) + " bytes";
+             std::to_string(value.size()) + " bytes";
     return {};
   }
   std::size_t at = 0;
@@ -151,7 +155,7 @@ std::string ExrValueProblem(std::ifstream& in, const std::string& type, std::int
     }
     return at == value.size()
                ? ""
-               : "holds its channels in " + std::to_string(at) + " of its " + std::to_string(size) + " bytes";
+               : "holds its channels in " + std::to_string(at) + " of its " + std::to_string(value.size()) + " bytes";
   }
   while (at < value.size()) {  // stringvector
     if (value.size() - at < 4) return "ends inside a string's length";
@@ -197,9 +201,17 @@ std::string ExrHeaderProblem(const std::filesystem::path& path) {
     if (const int fixed = ExrFixedValueSize(type); fixed >= 0 && size != fixed)
       return "its OpenEXR header's attribute '" + name + "' of type " + type + " claims " + std::to_string(size) +
              " bytes, where the type has " + std::to_string(fixed);
-    if (const std::string problem = ExrValueProblem(in, type, size); !problem.empty())
+    if (type == "floatvector" && size % 4 != 0)
+      return "its OpenEXR header's attribute '" + name + "' is not a whole number of floats";
+    if (!ExrReadsByContent(type)) {
+      in.seekg(size, std::ios::cur);
+      continue;
+    }
+    std::vector<unsigned char> value(static_cast<std::size_t>(size));
+    if (!in.read(reinterpret_cast<char*>(value.data()), size))
+      return "its OpenEXR header ends early in attribute '" + name + "'";
+    if (const std::string problem = ExrValueProblem(type, value); !problem.empty())
       return "its OpenEXR header's attribute '" + name + "' " + problem;
-    in.seekg(size, std::ios::cur);
   }
 }
 

@@ -228,6 +228,10 @@ TEST_F(ImageIo, AnExrAttributeWhoseContentIsNotItsDeclaredSizeIsRefused) {
   EXPECT_NE(made("preview_huge.exr", "preview", 12, LittleEndianBytes(65536) + LittleEndianBytes(65536) + "rgba")
                 .find("claims a preview of 65536x65536"),
             std::string::npos);
+  // 2^32 - 1 on each side: a product that overflows 64 bits must not wrap into a small size.
+  EXPECT_NE(made("preview_wrap.exr", "preview", 12, LittleEndianBytes(-1) + LittleEndianBytes(-1) + "rgba")
+                .find("claims a preview of 4294967295x4294967295"),
+            std::string::npos);
   EXPECT_NE(made("floats.exr", "floatvector", 6, "abcdef").find("not a whole number of floats"), std::string::npos);
 }
 
