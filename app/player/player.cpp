@@ -72,7 +72,7 @@ class VideoScene : public PlayerScene {
                    clock_.playing() ? "" : "  (paused)"),
             Printf("decode %.2f ms  upload %.2f ms  render %.2f ms", timings_.decode_ms, timings_.upload_ms,
                    timings_.render_ms),
-            Printf("total %.2f ms (median %.2f)  %.0f fps", timings_.total_ms, Median(totals_),
+            Printf("total %.2f ms (median %.2f)  %.0f fps", timings_.total_ms, RecentMedian(),
                    static_cast<double>(ImGui::GetIO().Framerate)),
             Printf("yaw %.1f  pitch %.1f  fov %.1f", look.yaw_deg, look.pitch_deg, look.fov_deg)};
   }
@@ -124,6 +124,13 @@ class VideoScene : public PlayerScene {
   }
 
  private:
+  // The overlay's median, of the last 256 frames: every frame sorting the whole session's timings
+  // would grow the frame's cost with the session (the report's median, at the end, takes them all).
+  double RecentMedian() const {
+    const std::size_t n = std::min<std::size_t>(totals_.size(), 256);
+    return Median(std::vector<double>(totals_.end() - static_cast<std::ptrdiff_t>(n), totals_.end()));
+  }
+
   // A window waits briefly for the decoder and keeps the previous picture when the frame is late
   // (playback goes on); a headless run writes frame i as file i, so it waits for exactly that
   // frame whatever the machine's load, and fails naming it if the decoder never delivers.
