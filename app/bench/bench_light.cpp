@@ -1,4 +1,4 @@
-// odvr bench light (issue 3): for every equirect map, the residual transform's four errors and
+// odvr bench light: for every equirect map, the residual transform's four errors and
 // its time per level count, with and without peaks, on the CPU (and the GPU when asked), beside
 // the least-squares optimum on the same SG basis and spherical harmonics of orders 2–16.
 // Writes a Markdown table, the raw rows (TSV) and a PNG plot of error against time.
@@ -241,7 +241,7 @@ void WriteSunnyAgainstSh8(const RowIndex& index, std::ostream& md) {
        << " / " << Fmt(sh->e.glossy20) << " | " << Fmt(sg->e.glossy200) << " / " << Fmt(sh->e.glossy200) << " | "
        << fmt::format("{:.1f} / {:.1f}", sg->ms, sh->ms) << " |\n";
   }
-  // Issue 3 asks the model to be only what the scene needs: the cheapest `sg+peaks` (levels,
+  // The model is to be only what the scene needs: the cheapest `sg+peaks` (levels,
   // width) that beats SH 8 of the same frame on all three errors, and whether it takes less time.
   md << "\n**Sunny maps: the cheapest `sg+peaks` that beats SH order 8 on all three errors** (over every "
         "levels and width; SH 8 from the same frame, ms from the same run):\n\n| map | levels | width | diffuse "
@@ -274,11 +274,11 @@ void WriteSunnyAgainstSh8(const RowIndex& index, std::ostream& md) {
     md << "\nBetter on all three errors at less time than SH 8: " << faster << " of " << sunny_maps << " sunny maps.\n";
 }
 
-// The figures issue 3 sets targets for, computed from the rows (never typed in by hand).
+// The figures the targets are set on, computed from the rows (never typed in by hand).
 std::string Targets(const std::vector<Row>& rows) {
   const RowIndex index(rows);
   std::ostringstream md;
-  md << "\n## Targets (issue 3), from the rows above\n\n";
+  md << "\n## Targets, from the rows above\n\n";
   md << "**Against the least-squares optimum, through level 4** (5 levels, 4092 SGs + constant; `sg` = the "
         "transform alone on the same basis; ratio = transform error / optimum error, per map, at the widest "
         "width, the optimum fitted to the same enlarged frame):\n\n";
@@ -350,7 +350,7 @@ void WriteReport(const std::vector<Row>& rows, const BenchLightOptions& o, const
   md << "# Lighting: speed against error\n\n"
      << "Made by `odvr bench light` on " << machine
      << ". Medians over the maps (the HDR maps of `../shared/data/env/`, bilinearly enlarged to each width). "
-     << "Errors (issue 3): `rel_l2` is the solid-angle-weighted ‖I − R‖₂/‖I‖₂; `diffuse`, `glossy20` and "
+     << "Errors: `rel_l2` is the solid-angle-weighted ‖I − R‖₂/‖I‖₂; `diffuse`, `glossy20` and "
      << "`glossy200` compare the input and the model convolved with a clamped cosine and with SG lobes of "
      << "λ = 20 and 200 at the 768 level-3 HEALPix directions. `sg` is the residual transform alone, "
      << "`sg+peaks` takes suns out as free-form SGs first; `least-squares` is the optimum on the same SG basis "

@@ -1,4 +1,4 @@
-// odvr bench reconstruct (issue 6): our structure from motion (tracking/reconstruction.h) against
+// odvr bench reconstruct: our structure from motion (tracking/reconstruction.h) against
 // the dataset's ground-truth rig poses, beside COLMAP 3.8 run through its command line on the same
 // images on the same machine. ATE after a similarity alignment, RPE and, for our metric
 // trajectory, the scale error without aligning scale (tracking/evaluation.h); time per stage.
@@ -131,7 +131,7 @@ std::string Targets(const Results& r) {
   const MethodRow* ours = Find(r, "odvr");
   const MethodRow* colmap = Find(r, "colmap");
   std::ostringstream md;
-  md << "\n## Targets (issue 6), from the rows above\n\n";
+  md << "\n## Targets, from the rows above\n\n";
   const auto verdict = [](bool met) { return met ? "met" : "not met"; };
   if (!ours || !std::isfinite(ours->ate_percent)) {
     md << "**Not measured:** odvr has no trajectory in this table" << (ours ? " (" + ours->note + ")" : "") << ".\n";

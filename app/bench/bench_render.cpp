@@ -1,4 +1,4 @@
-// odvr bench render (issue 4): the triple-product renderer against Cycles references — mean
+// odvr bench render: the triple-product renderer against Cycles references — mean
 // relative error and SSIM on car pixels, the shadow ratio's error, shade and total ms — over
 // lighting levels × cones × voxel resolution, beside the brute-force Monte-Carlo shader
 // (RenderOptions::monte_carlo_samples) on the same device at several sample counts. Writes a
@@ -29,6 +29,7 @@
 #include "engine/image/image_io.h"
 #include "engine/image/ssim.h"
 #include "engine/lighting/lighting_builder.h"
+#include "engine/material/brdf.h"
 #include "engine/render/triple_product_renderer.h"
 #include "engine/scene/gltf_scene.h"
 #include "engine/sphere/equirect.h"
@@ -155,9 +156,15 @@ std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& 
                                                in.at("height").get<int>(), Vec3(cam.at("up")));
       const auto& mp = im.at("material_params");
       const auto base = Vec3(mp.at("base_color"));
-      r.materials.push_back(render::ParseMaterialOverride(fmt::format("mr:{},{},{},{},{}", base.x, base.y, base.z,
-                                                                      mp.at("metallic").get<double>(),
-                                                                      mp.at("roughness").get<double>())));
+      render::MaterialOverride paint;
+      paint.brdfs = {
+          material::MetallicRoughness{base, mp.at("metallic").get<double>(), mp.at("roughness").get<double>()}};
+      try {
+        material::CheckBrdf(paint.brdfs[0]);
+      } catch (const Error& e) {
+        throw Error(json_path.string(), r.name + ": " + e.what());
+      }
+      r.materials.push_back(std::move(paint));
       if (r.rgb.width != r.camera.width || r.mask.size() != r.rgb.rgb.size() / 3 || r.shadow.width != r.rgb.width)
         throw Error(json_path.string(), r.name + ": the image sizes disagree with the camera");
       refs.push_back(std::move(r));
@@ -533,13 +540,32 @@ AtMcsBest AtMcsBestError(const std::vector<const Row*>& mc, const std::vector<co
   return out;
 }
 
+// The rows without a reference (car_pixels 0): a frame's size, its shade and total time, and its
+// frame rate, with every layer read back and as the window player draws it.
+std::string FrameRateLines(const std::vector<Row>& rows) {
+  std::ostringstream md;
+  for (const auto& r : rows)
+    if (r.car_pixels == 0 && r.method == "sg")
+      md << "\n**" << r.width << "×" << r.height << "** (" << r.reference << ", default configuration): shade "
+         << F(r.shade_ms, 1) << " ms, total " << F(r.total_ms, 1) << " ms = " << F(1000.0 / r.total_ms, 2)
+         << " fps with every layer read back (one render)"
+         << (r.frame_total_ms > 0
+                 ? "; as the window player draws it (nothing read back but the counts' sums; median of 5 after a "
+                   "first render) shade " +
+                       F(r.frame_shade_ms, 1) + " ms, total " + F(r.frame_total_ms, 1) +
+                       " ms = " + F(1000.0 / r.frame_total_ms, 2) + " fps"
+                 : std::string())
+         << " (target on a GPU: ≥ 60 fps).\n";
+  return md.str();
+}
+
 std::string Targets(const std::vector<Row>& rows) {
   std::ostringstream md;
   std::set<std::string> refs;
   for (const auto& r : rows)
     if (r.car_pixels > 0) refs.insert(r.reference);
   const std::string lobes = DefaultLobes();
-  md << "\n## Targets (issue 4), from the rows above\n\n"
+  md << "\n## Targets, from the rows above\n\n"
      << "Default configuration: " << kDefaultLevels << " levels, " << kDefaultCones << " cones, " << kDefaultVoxels
      << "³ voxels, lobes `" << lobes << "`. Speed: the Monte-Carlo shader's shade ms at the SG renderer's error, "
      << "interpolated (log-log) between its rows; `>` marks an SG error below every MC row (the ratio is then a "
@@ -670,18 +696,7 @@ std::string Targets(const std::vector<Row>& rows) {
        << "\n**Mean relative error ≤ 10 % on car pixels, finest configuration:** " << fine_met << " of " << fine_total
        << " references. **≥ 20× faster than MC at equal error:** " << fine_fast << " of " << fine_fast_total << ".\n";
   }
-  for (const auto& r : rows)
-    if (r.car_pixels == 0 && r.method == "sg")
-      md << "\n**" << r.width << "×" << r.height << "** (" << r.reference << ", default configuration): shade "
-         << F(r.shade_ms, 1) << " ms, total " << F(r.total_ms, 1) << " ms = " << F(1000.0 / r.total_ms, 2)
-         << " fps with every layer read back (one render)"
-         << (r.frame_total_ms > 0
-                 ? "; as the window player draws it (nothing read back but the counts' sums; median of 5 after a "
-                   "first render) shade " +
-                       F(r.frame_shade_ms, 1) + " ms, total " + F(r.frame_total_ms, 1) +
-                       " ms = " + F(1000.0 / r.frame_total_ms, 2) + " fps"
-                 : std::string())
-         << " (target on a GPU: ≥ 60 fps).\n";
+  md << FrameRateLines(rows);
   return md.str();
 }
 

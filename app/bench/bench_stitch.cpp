@@ -1,4 +1,4 @@
-// odvr bench stitch (issue 7): the stitcher against the street_a ground-truth panoramas, beside
+// odvr bench stitch: the stitcher against the street_a ground-truth panoramas, beside
 // OpenCV's own stitching pipeline given the same known calibration. Time per frame and PSNR
 // (8-bit sRGB, over the valid mask and over the seams alone) side by side; writes a Markdown
 // table, the raw rows (TSV) and a PNG plot of PSNR against time.
@@ -254,7 +254,7 @@ std::vector<cv::Mat> LoadRigFrame(const fs::path& dataset, const capture::Rig& r
   return images;
 }
 
-// The figures issue 7 sets targets for, computed from the rows (never typed in by hand).
+// The figures the targets are set on, computed from the rows (never typed in by hand).
 std::string Targets(const std::vector<Row>& rows, const BenchStitchOptions& o, const std::string& gpu_renderer) {
   std::map<int, std::map<std::string, const Row*>> by_frame;
   for (const auto& r : rows) by_frame[r.frame][r.method] = &r;
@@ -269,7 +269,7 @@ std::string Targets(const std::vector<Row>& rows, const BenchStitchOptions& o, c
     if (gpu != methods.end()) gpu_ms.push_back(gpu->second->ms);
   }
   std::ostringstream md;
-  md << "\n## Targets (issue 7), from the rows above\n\n";
+  md << "\n## Targets, from the rows above\n\n";
   if (!speedup.empty()) {
     // PSNR is printed to 0.01 dB and the frames differ by tenths: "equal" allows 0.05 dB.
     constexpr double kEqualDb = 0.05;

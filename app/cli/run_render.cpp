@@ -14,6 +14,8 @@
 
 #include "app/bench/bench_common.h"
 #include "app/cli/commands.h"
+#include "app/flags/command_flags.h"
+#include "app/flags/material_flag.h"
 #include "app/flags/render_switches.h"
 #include "core/error.h"
 #include "core/timing.h"
@@ -47,18 +49,7 @@ struct RenderCliOptions {
 };
 
 std::vector<double> Numbers(const std::string& text, const std::string& flag, std::size_t count) {
-  std::vector<double> v;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      std::size_t used = 0;
-      v.push_back(std::stod(item, &used));
-      if (used != item.size() || !std::isfinite(v.back())) throw std::invalid_argument(item);
-    } catch (const std::exception&) {
-      throw UsageError(flag, "'" + item + "' is not a number (in '" + text + "')");
-    }
-  }
+  const std::vector<double> v = ParseNumberList(text, flag);
   if (v.size() != count)
     throw UsageError(flag, "want " + std::to_string(count) + " comma-separated numbers, got " +
                                std::to_string(v.size()) + " in '" + text + "'");
@@ -106,7 +97,7 @@ render::RenderOptions RenderOptionsFor(const RenderCliOptions& o) {
   options.shade_lanes = o.shade_lanes;
   if (o.composite_only && !o.layers.empty())
     throw UsageError("--composite-only", "reads back the composite alone: it cannot write --layers");
-  for (const auto& m : o.materials) options.materials.push_back(render::ParseMaterialOverride(m));
+  for (const auto& m : o.materials) options.materials.push_back(ParseMaterialOverride(m));
   options.Check();
   return options;
 }

@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <sstream>
+#include <stdexcept>
 
 #include "core/error.h"
 
@@ -23,6 +25,22 @@ CLI::Validator FiniteNumberIn(double min, double max) {
         return "";
       },
       "NUMBER in " + range);
+}
+
+std::vector<double> ParseNumberList(const std::string& text, const std::string& flag) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      std::size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      if (used != item.size() || !std::isfinite(v.back())) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      throw UsageError(flag, "'" + item + "' is not a number (in '" + text + "')");
+    }
+  }
+  return v;
 }
 
 int ConeRingsForCount(int cones) {

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace odvr::app {
 
@@ -18,6 +19,10 @@ CLI::Option* AddSetFlag(CLI::App* sub, const std::string& name, bool* value, boo
 // A command-line number in [min, max], finite: CLI::Range lets "nan" through (every comparison with
 // it is false), and a value the command then took for "not given" used to pass silently.
 CLI::Validator FiniteNumberIn(double min, double max);
+
+// A comma-separated list of finite numbers ("1,2.5,-3"); throws UsageError naming `flag` and the
+// item that is not one.
+std::vector<double> ParseNumberList(const std::string& text, const std::string& flag);
 
 // --cones (1, 7, 19 or 37) as the renderer's hexagonal rings (0-3); throws UsageError otherwise.
 int ConeRingsForCount(int cones);

@@ -60,8 +60,8 @@ class OverlapBins {
  public:
   explicit OverlapBins(OverlapBinOptions options = {});
   // The bins for `options`, built once per process and shared (the last few option sets are
-  // kept): they depend on nothing else, and a renderer built each time a test, a bench row or the
-  // player makes one spent half a second on them (37 % of triple_product_renderer_test).
+  // kept): they depend on nothing else, and building them (about half a second) each time a
+  // test, a bench row or the player makes a renderer would dominate small renders.
   static std::shared_ptr<const OverlapBins> Shared(const OverlapBinOptions& options);
 
   // The SRBFs (global indices) that a lobe of sharpness `lambda` around unit `direction` needs.

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <numeric>
+#include <optional>
 
 #include "core/error.h"
 #include "core/float4.h"
@@ -622,6 +623,171 @@ PeakDetection DetectPeaksToCoarseGrid(const sphere::EquirectImage& frame, int co
 
 namespace {
 
+// Only the brightest components are worth a peak: rank by rough energy first, so a noisy frame
+// with thousands of bright specks costs no more than a clean one. In an LDR frame a component
+// below the horizon or spread wide cannot be a sun (whatever its ring): it is left out before the
+// ranking, or a street's clipped lane markings and kerbs crowd out a one-pixel sun. Keeps the
+// 2 × most + 2 brightest, brightest first; sets out->ldr_glow in an LDR frame.
+std::vector<std::vector<int>> RankComponents(std::vector<std::vector<int>> components,
+                                             const sphere::EquirectImage& frame, const std::vector<double>& da,
+                                             const PeakDetectorOptions& options, int most, PeakDetection* out) {
+  const int w = frame.width, h = frame.height;
+  std::vector<std::pair<double, std::size_t>> rough;
+  for (std::size_t i = 0; i < components.size(); ++i) {
+    if (components[i].empty()) continue;
+    double e = 0;
+    if (out->ldr) {
+      // Clipped pixels all read 1, so an LDR component ranks by its glow instead of its energy.
+      if (!CouldBeAnLdrSunByShape(components[i], w, h, options)) continue;
+      e = GlowAround(components[i], frame, options.ldr_glow_radius_deg);
+    } else {
+      for (int p : components[i])
+        e += Luminance(&frame.rgb[3 * static_cast<std::size_t>(p)]) * da[static_cast<std::size_t>(p / w)];
+    }
+    rough.emplace_back(e, i);
+  }
+  std::sort(rough.rbegin(), rough.rend());
+  // The sun is one of a kind: where the clipped candidates glow alike (the crossings of a white
+  // room's grid lines, a row of windows) none of them is taken for it.
+  if (out->ldr && !rough.empty()) {
+    out->ldr_glow = {rough[0].first, rough.size() >= 2 ? rough[1].first : 0.0};
+    if (rough.size() >= 2 && !(rough[0].first >= options.ldr_min_glow_margin * rough[1].first)) rough.clear();
+  }
+  if (rough.size() > static_cast<std::size_t>(2 * most + 2)) rough.resize(static_cast<std::size_t>(2 * most + 2));
+  std::vector<std::vector<int>> ranked;
+  for (const auto& [e, i] : rough) ranked.push_back(std::move(components[i]));
+  return ranked;
+}
+
+// A component's surrounding level: the mean of the one-pixel ring around it. `in` marks the
+// component's pixels (1) and its ring (2), and is cleared again.
+glm::vec3 RingMean(const std::vector<int>& pixels, const sphere::EquirectImage& frame, PixelMarks* in) {
+  const int w = frame.width, h = frame.height;
+  for (int p : pixels) in->Set(p, 1);
+  glm::dvec3 ring(0);
+  int ring_n = 0;
+  for (int p : pixels) {
+    const int row = p / w, col = p % w;
+    for (int dr = -1; dr <= 1; ++dr)
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int r2 = row + dr;
+        if (r2 < 0 || r2 >= h) continue;
+        // Wrapped by hand: two integer divisions per neighbour were most of this loop's time.
+        const int c2 = col + dc < 0 ? col + dc + w : (col + dc >= w ? col + dc - w : col + dc);
+        const int q = r2 * w + c2;
+        if ((*in)[q]) continue;
+        in->Set(q, 2);  // count each ring pixel once
+        const float* v = frame.at(c2, r2);
+        ring += glm::dvec3(v[0], v[1], v[2]);
+        ++ring_n;
+      }
+  }
+  in->Clear();
+  return ring_n ? glm::vec3(ring / double(ring_n)) : glm::vec3(0);
+}
+
+// An elongated component as k SGs: k-means on its pixels' directions, seeded along its extent,
+// then one SG fitted to each cluster's excess.
+std::vector<RgbSg> SplitIntoSgs(const std::vector<int>& pixels, const std::vector<glm::dvec3>& excess,
+                                const sphere::EquirectImage& frame, double pixel_angle, int k) {
+  std::vector<glm::dvec3> dirs(pixels.size());
+  const PixelDirections& direction = PixelDirections::Of(frame.width, frame.height);
+  for (std::size_t i = 0; i < pixels.size(); ++i) dirs[i] = direction(pixels[i]);
+  std::vector<glm::dvec3> centres;
+  for (int j = 0; j < k; ++j)
+    centres.push_back(dirs[(pixels.size() - 1) * static_cast<std::size_t>(j) / static_cast<std::size_t>(k - 1)]);
+  std::vector<int> assign(pixels.size(), 0);
+  for (int it = 0; it < 10; ++it) {
+    for (std::size_t i = 0; i < dirs.size(); ++i) {
+      int best = 0;
+      for (int j = 1; j < k; ++j)
+        if (glm::dot(dirs[i], centres[static_cast<std::size_t>(j)]) >
+            glm::dot(dirs[i], centres[static_cast<std::size_t>(best)]))
+          best = j;
+      assign[i] = best;
+    }
+    std::vector<glm::dvec3> sums(static_cast<std::size_t>(k), glm::dvec3(0));
+    for (std::size_t i = 0; i < dirs.size(); ++i) sums[static_cast<std::size_t>(assign[i])] += dirs[i];
+    for (int j = 0; j < k; ++j)
+      if (glm::length(sums[static_cast<std::size_t>(j)]) > 0)
+        centres[static_cast<std::size_t>(j)] = glm::normalize(sums[static_cast<std::size_t>(j)]);
+  }
+  std::vector<RgbSg> sgs;
+  for (int j = 0; j < k; ++j) {
+    std::vector<int> px;
+    std::vector<glm::dvec3> ex;
+    for (std::size_t i = 0; i < pixels.size(); ++i)
+      if (assign[i] == j) {
+        px.push_back(pixels[i]);
+        ex.push_back(excess[i]);
+      }
+    if (!px.empty()) sgs.push_back(FitSg(px, ex, frame, pixel_angle));
+  }
+  return sgs;
+}
+
+struct Candidate {
+  DetectedPeak peak;
+  std::vector<int> pixels;
+  glm::vec3 background;
+};
+
+// A ranked component as a peak: none for what is not a light (too large, too little contrast
+// with its ring, too broad), else its excess over the ring fitted by one SG, or by up to
+// max_sgs_per_peak when it is elongated.
+std::optional<Candidate> MakeCandidate(std::vector<int> pixels, const sphere::EquirectImage& frame,
+                                       const std::vector<double>& da, const PeakDetectorOptions& options, bool ldr,
+                                       double pixel_angle, PixelMarks* in) {
+  const int w = frame.width, h = frame.height;
+  if (pixels.empty()) return std::nullopt;
+  double area = 0;
+  for (int p : pixels) area += da[static_cast<std::size_t>(p / w)];
+  if (area > options.max_area_fraction * 4 * kPi) return std::nullopt;  // a bright wall, not a light
+  Candidate c;
+  c.background = RingMean(pixels, frame, in);
+  const auto value = [&](int p) { return &frame.rgb[3 * static_cast<std::size_t>(p)]; };
+  // A light stands out from what surrounds it; a glow only a few times its ring (dawn.exr's
+  // reddened sky around the sun, 4× its ring) is smooth enough for the hierarchy, and 1–3 SGs
+  // fitted to its irregular shape put its light in the wrong places (glossy200 error 0.008
+  // without peaks, 0.052 with). A clipped LDR sun's contrast is lost with its intensity.
+  // Judged before the per-pixel excess, which a glow would only throw away.
+  if (!ldr) {
+    double brightest = 0;
+    for (int p : pixels) brightest = std::max(brightest, Luminance(value(p)));
+    const float ring_level[3] = {c.background.x, c.background.y, c.background.z};
+    if (brightest < options.min_contrast * Luminance(ring_level)) return std::nullopt;
+  } else if (!StandsOutFromItsRing(c.background, options)) {  // its shape was judged before the ranking
+    return std::nullopt;
+  }
+  std::vector<glm::dvec3> excess(pixels.size());
+  for (std::size_t i = 0; i < pixels.size(); ++i) {
+    const int p = pixels[i];
+    const float* v = value(p);
+    excess[i] = glm::max(glm::dvec3(v[0], v[1], v[2]) - glm::dvec3(c.background), glm::dvec3(0)) *
+                da[static_cast<std::size_t>(p / w)];
+    c.peak.energy += excess[i];
+  }
+  c.peak.pixels = static_cast<int>(pixels.size());
+  if (c.peak.energy == glm::dvec3(0)) return std::nullopt;
+
+  // Elongated? Principal axes of the pixel directions about the mean: split by k-means.
+  const RgbSg whole = FitSg(pixels, excess, frame, pixel_angle);
+  // A component as broad as one SG of the hierarchy's level 3 (λ 364.5) is what levels 0–3
+  // resolve; as free SGs fitted to its irregular shape it puts light in the wrong places. Judged
+  // on the one SG of the whole component: judged on the SGs after the split, lobby.exr's window
+  // (one SG of λ 229, three of 1600–2000) stayed a peak and raised glossy200 by 17 %.
+  if (whole.lambda < options.min_lambda) return std::nullopt;
+  int k = 1;
+  if (options.max_sgs_per_peak > 1 && pixels.size() >= 6) {
+    const double ratio = Elongation(pixels, whole.axis, w, h);
+    if (ratio > options.elongation_for_split)
+      k = std::min(options.max_sgs_per_peak, ratio > 2 * options.elongation_for_split ? 3 : 2);
+  }
+  c.peak.sgs = k == 1 ? std::vector<RgbSg>{whole} : SplitIntoSgs(pixels, excess, frame, pixel_angle, k);
+  c.pixels = std::move(pixels);
+  return c;
+}
+
 PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* owned, bool keep_residue,
                      const PeakDetectorOptions& options, std::chrono::steady_clock::time_point start, int coarse_factor,
                      const sphere::EquirectImage* source, int source_factor, ThreadPool* pool,
@@ -664,151 +830,15 @@ PeakDetection Detect(const sphere::EquirectImage& input, sphere::EquirectImage* 
   std::vector<std::vector<int>> components = Components(frame, scan, out.threshold, out.ldr);
   if (components.empty()) return finish();
 
-  // Only the brightest components are worth a peak: rank by rough energy first, so a noisy
-  // frame with thousands of bright specks costs no more than a clean one. In an LDR frame a
-  // component below the horizon or spread wide cannot be a sun (whatever its ring): it is left out
-  // before the ranking, or a street's clipped lane markings and kerbs crowd out a one-pixel sun.
-  std::vector<std::pair<double, std::size_t>> rough;
-  for (std::size_t i = 0; i < components.size(); ++i) {
-    if (components[i].empty()) continue;
-    double e = 0;
-    if (out.ldr) {
-      // Clipped pixels all read 1, so an LDR component ranks by its glow instead of its energy.
-      if (!CouldBeAnLdrSunByShape(components[i], w, h, options)) continue;
-      e = GlowAround(components[i], frame, options.ldr_glow_radius_deg);
-    } else {
-      for (int p : components[i])
-        e += Luminance(&frame.rgb[3 * static_cast<std::size_t>(p)]) * da[static_cast<std::size_t>(p / w)];
-    }
-    rough.emplace_back(e, i);
-  }
-  std::sort(rough.rbegin(), rough.rend());
-  // The sun is one of a kind: where the clipped candidates glow alike (the crossings of a white
-  // room's grid lines, a row of windows) none of them is taken for it.
-  if (out.ldr && !rough.empty()) {
-    out.ldr_glow = {rough[0].first, rough.size() >= 2 ? rough[1].first : 0.0};
-    if (rough.size() >= 2 && !(rough[0].first >= options.ldr_min_glow_margin * rough[1].first)) rough.clear();
-  }
   const int most = out.ldr ? std::min(options.max_peaks, options.ldr_max_suns) : options.max_peaks;
-  if (rough.size() > static_cast<std::size_t>(2 * most + 2)) rough.resize(static_cast<std::size_t>(2 * most + 2));
-  std::vector<std::vector<int>> ranked;
-  for (const auto& [e, i] : rough) ranked.push_back(std::move(components[i]));
-  components = std::move(ranked);
+  components = RankComponents(std::move(components), frame, da, options, most, &out);
 
   const double pixel_angle = kPi / h;
-  struct Candidate {
-    DetectedPeak peak;
-    std::vector<int> pixels;
-    glm::vec3 background;
-  };
   std::vector<Candidate> candidates;
-  PixelMarks in(frame.pixel_count());  // the component's pixels (1) and its ring (2), one component at a time
-  for (auto& pixels : components) {
-    if (pixels.empty()) continue;
-    double area = 0;
-    for (int p : pixels) area += da[static_cast<std::size_t>(p / w)];
-    if (area > options.max_area_fraction * 4 * kPi) continue;  // a bright wall, not a light
-    // The surrounding level: mean of the one-pixel ring around the component.
-    for (int p : pixels) in.Set(p, 1);
-    glm::dvec3 ring(0);
-    int ring_n = 0;
-    for (int p : pixels) {
-      const int row = p / w, col = p % w;
-      for (int dr = -1; dr <= 1; ++dr)
-        for (int dc = -1; dc <= 1; ++dc) {
-          const int r2 = row + dr;
-          if (r2 < 0 || r2 >= h) continue;
-          // Wrapped by hand: two integer divisions per neighbour were most of this loop's time.
-          const int c2 = col + dc < 0 ? col + dc + w : (col + dc >= w ? col + dc - w : col + dc);
-          const int q = r2 * w + c2;
-          if (in[q]) continue;
-          in.Set(q, 2);  // count each ring pixel once
-          const float* v = frame.at(c2, r2);
-          ring += glm::dvec3(v[0], v[1], v[2]);
-          ++ring_n;
-        }
-    }
-    in.Clear();
-    Candidate c;
-    c.background = ring_n ? glm::vec3(ring / double(ring_n)) : glm::vec3(0);
-    const auto value = [&](int p) { return &frame.rgb[3 * static_cast<std::size_t>(p)]; };
-    // A light stands out from what surrounds it; a glow only a few times its ring (dawn.exr's
-    // reddened sky around the sun, 4× its ring) is smooth enough for the hierarchy, and 1–3 SGs
-    // fitted to its irregular shape put its light in the wrong places (glossy200 error 0.008
-    // without peaks, 0.052 with). A clipped LDR sun's contrast is lost with its intensity.
-    // Judged before the per-pixel excess, which a glow would only throw away.
-    if (!out.ldr) {
-      double brightest = 0;
-      for (int p : pixels) brightest = std::max(brightest, Luminance(value(p)));
-      const float ring_level[3] = {c.background.x, c.background.y, c.background.z};
-      if (brightest < options.min_contrast * Luminance(ring_level)) continue;
-    } else if (!StandsOutFromItsRing(c.background, options)) {  // its shape was judged before the ranking
-      continue;
-    }
-    std::vector<glm::dvec3> excess(pixels.size());
-    for (std::size_t i = 0; i < pixels.size(); ++i) {
-      const int p = pixels[i];
-      const float* v = value(p);
-      excess[i] = glm::max(glm::dvec3(v[0], v[1], v[2]) - glm::dvec3(c.background), glm::dvec3(0)) *
-                  da[static_cast<std::size_t>(p / w)];
-      c.peak.energy += excess[i];
-    }
-    c.peak.pixels = static_cast<int>(pixels.size());
-    if (c.peak.energy == glm::dvec3(0)) continue;
-
-    // Elongated? Principal axes of the pixel directions about the mean: split by k-means.
-    const RgbSg whole = FitSg(pixels, excess, frame, pixel_angle);
-    // A component as broad as one SG of the hierarchy's level 3 (λ 364.5) is what levels 0–3
-    // resolve; as free SGs fitted to its irregular shape it puts light in the wrong places. Judged
-    // on the one SG of the whole component: judged on the SGs after the split, lobby.exr's window
-    // (one SG of λ 229, three of 1600–2000) stayed a peak and raised glossy200 by 17 %.
-    if (whole.lambda < options.min_lambda) continue;
-    int k = 1;
-    if (options.max_sgs_per_peak > 1 && pixels.size() >= 6) {
-      const double ratio = Elongation(pixels, whole.axis, w, h);
-      if (ratio > options.elongation_for_split)
-        k = std::min(options.max_sgs_per_peak, ratio > 2 * options.elongation_for_split ? 3 : 2);
-    }
-    if (k == 1) {
-      c.peak.sgs.push_back(whole);
-    } else {
-      // k-means on directions, seeded along the component's extent.
-      std::vector<glm::dvec3> dirs(pixels.size());
-      const PixelDirections& direction = PixelDirections::Of(w, h);
-      for (std::size_t i = 0; i < pixels.size(); ++i) dirs[i] = direction(pixels[i]);
-      std::vector<glm::dvec3> centres;
-      for (int j = 0; j < k; ++j)
-        centres.push_back(dirs[(pixels.size() - 1) * static_cast<std::size_t>(j) / static_cast<std::size_t>(k - 1)]);
-      std::vector<int> assign(pixels.size(), 0);
-      for (int it = 0; it < 10; ++it) {
-        for (std::size_t i = 0; i < dirs.size(); ++i) {
-          int best = 0;
-          for (int j = 1; j < k; ++j)
-            if (glm::dot(dirs[i], centres[static_cast<std::size_t>(j)]) >
-                glm::dot(dirs[i], centres[static_cast<std::size_t>(best)]))
-              best = j;
-          assign[i] = best;
-        }
-        std::vector<glm::dvec3> sums(static_cast<std::size_t>(k), glm::dvec3(0));
-        for (std::size_t i = 0; i < dirs.size(); ++i) sums[static_cast<std::size_t>(assign[i])] += dirs[i];
-        for (int j = 0; j < k; ++j)
-          if (glm::length(sums[static_cast<std::size_t>(j)]) > 0)
-            centres[static_cast<std::size_t>(j)] = glm::normalize(sums[static_cast<std::size_t>(j)]);
-      }
-      for (int j = 0; j < k; ++j) {
-        std::vector<int> px;
-        std::vector<glm::dvec3> ex;
-        for (std::size_t i = 0; i < pixels.size(); ++i)
-          if (assign[i] == j) {
-            px.push_back(pixels[i]);
-            ex.push_back(excess[i]);
-          }
-        if (!px.empty()) c.peak.sgs.push_back(FitSg(px, ex, frame, pixel_angle));
-      }
-    }
-    c.pixels = std::move(pixels);
-    candidates.push_back(std::move(c));
-  }
+  PixelMarks in(frame.pixel_count());
+  for (auto& pixels : components)
+    if (auto c = MakeCandidate(std::move(pixels), frame, da, options, out.ldr, pixel_angle, &in))
+      candidates.push_back(std::move(*c));
   // The brightest first (an LDR frame's: the most glowing, the ranking's order); keep max_peaks.
   if (!out.ldr)
     std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {

@@ -789,22 +789,12 @@ SgLighting ResidualTransform::Run(sphere::EquirectImage&& input, TransformReport
   return Run(input, &input, report_out);
 }
 
-SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::EquirectImage* owned,
-                                  TransformReport* report_out) {
-  const auto start = Clock::now();
-  CheckTransformInput(input.width, input.height);
-  TransformReport report;
-  SgLighting model;
-  // One run at a time: the images below are kept across frames (a fresh 512×256 image per pass
-  // was zeroed on the calling thread while the pool waited), and the pool takes one caller anyway.
-  std::lock_guard run_lock(run_mutex_);
+// Working grids, finest first, each resampled from the next finer one (area-preserving).
+void ResidualTransform::PrepareGrids(const sphere::EquirectImage& input, sphere::EquirectImage* owned) {
   Scratch& scratch = scratch_;
-
-  // Working grids, finest first, each resampled from the next finer one (area-preserving).
   const int levels = options_.levels;
   std::vector<sphere::EquirectImage>& grids = scratch.grids;
   grids.resize(static_cast<std::size_t>(levels));
-  // `input` may be `*owned`, whose storage is swapped for a grid below: its size, kept here.
   const int input_w = input.width, input_h = input.height;
   const auto [finest_w, finest_h] = GridOf(levels - 1, input_w, input_h);
   // The builder hands over the detector's grid, already the finest: taken, not copied (the
@@ -828,6 +818,71 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
       sphere::ResampleArea(finer, &grid, pool_.get());
     }
   }
+}
+
+// The level's amplitudes (eq. 4.17), refitted by the extra sweeps, then the keep rule; *kept
+// counts the SRBFs left.
+std::vector<glm::vec3> ResidualTransform::FitLevel(const LevelTables& t, const sphere::EquirectImage& residue, int s,
+                                                   float keep, int* kept) {
+  std::vector<glm::vec3> mu;
+  Project(t, residue, options_.normalization, &mu, pool_.get());
+  if (const int sweeps = SweepsOf(options_, s); sweeps > 1) {
+    // Each refit is μ += ω P(r − R(μ)) = ω (P(r) − Mμ) (LevelGram): on the amplitudes, where
+    // reconstructing and projecting the grid again took two thirds of level 4's time at 2048
+    // wide (three sweeps), for the same μ but for float rounding.
+    const LevelGram& gram = Gram(s, residue.width, residue.height);
+    const std::vector<glm::vec3> projected = mu;
+    std::vector<glm::vec3> delta;
+    const float step = RelaxationOf(options_, s);
+    for (int sweep = 1; sweep < sweeps; ++sweep) {
+      gram.Residual(projected, mu, &delta, pool_.get());
+      for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += step * delta[c];
+    }
+  }
+  // Model only what the frame needs: drop negligible SRBFs before the one reconstruction, so
+  // what the level leaves keeps their share.
+  for (glm::vec3& m : mu) {
+    if (std::max({std::abs(m.x), std::abs(m.y), std::abs(m.z)}) < keep)
+      m = glm::vec3(0);
+    else
+      ++*kept;
+  }
+  return mu;
+}
+
+namespace {
+
+// A fitted level as the model keeps it: the SRBFs the keep rule left.
+SgLevel KeptLevel(int s, double lambda, const std::vector<glm::vec3>& mu) {
+  SgLevel level;
+  level.level = s;
+  level.lambda = lambda;
+  for (std::size_t c = 0; c < mu.size(); ++c) {
+    if (mu[c] == glm::vec3(0)) continue;
+    level.indices.push_back(static_cast<int>(c));
+    level.amplitudes.push_back(mu[c]);
+  }
+  return level;
+}
+
+}  // namespace
+
+SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::EquirectImage* owned,
+                                  TransformReport* report_out) {
+  const auto start = Clock::now();
+  CheckTransformInput(input.width, input.height);
+  TransformReport report;
+  SgLighting model;
+  // One run at a time: the images below are kept across frames (a fresh 512×256 image per pass
+  // was zeroed on the calling thread while the pool waited), and the pool takes one caller anyway.
+  std::lock_guard run_lock(run_mutex_);
+  Scratch& scratch = scratch_;
+
+  // `input` may be `*owned`, whose storage is swapped for a grid below: its size, kept here.
+  const int levels = options_.levels;
+  const int input_w = input.width, input_h = input.height;
+  PrepareGrids(input, owned);
+  std::vector<sphere::EquirectImage>& grids = scratch.grids;
   report.prepare_ms = MsSince(start);
   report.input_width = input_w;
   report.input_height = input_h;
@@ -903,30 +958,8 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
     }
 
     const LevelTables& t = Tables(s, w, h);
-    std::vector<glm::vec3> mu;
-    Project(t, residue, options_.normalization, &mu, pool_.get());
-    if (const int sweeps = SweepsOf(options_, s); sweeps > 1) {
-      // Each refit is μ += ω P(r − R(μ)) = ω (P(r) − Mμ) (LevelGram): on the amplitudes, where
-      // reconstructing and projecting the grid again took two thirds of level 4's time at 2048
-      // wide (three sweeps), for the same μ but for float rounding.
-      const LevelGram& gram = Gram(s, w, h);
-      const std::vector<glm::vec3> projected = mu;
-      std::vector<glm::vec3> delta;
-      const float step = RelaxationOf(options_, s);
-      for (int sweep = 1; sweep < sweeps; ++sweep) {
-        gram.Residual(projected, mu, &delta, pool_.get());
-        for (std::size_t c = 0; c < mu.size(); ++c) mu[c] += step * delta[c];
-      }
-    }
-    // Model only what the frame needs: drop negligible SRBFs before the one reconstruction, so
-    // what the level leaves keeps their share.
     int kept = 0;
-    for (glm::vec3& m : mu) {
-      if (std::max({std::abs(m.x), std::abs(m.y), std::abs(m.z)}) < keep)
-        m = glm::vec3(0);
-      else
-        ++kept;
-    }
+    std::vector<glm::vec3> mu = FitLevel(t, residue, s, keep, &kept);
     remaining.Reshape(w, h);
     Reconstruct(t, mu, -1.0f, residue, &remaining, pool_.get());
     const AbsAndSquareSums sums_after = SphereAbsAndSquareSums(remaining, pool_.get());
@@ -954,15 +987,7 @@ SgLighting ResidualTransform::Run(const sphere::EquirectImage& input, sphere::Eq
       break;
     }
     lr.residue_after = after;
-    SgLevel level;
-    level.level = s;
-    level.lambda = t.lambda;
-    for (std::size_t c = 0; c < mu.size(); ++c) {
-      if (mu[c] == glm::vec3(0)) continue;
-      level.indices.push_back(static_cast<int>(c));
-      level.amplitudes.push_back(mu[c]);
-    }
-    model.levels.push_back(std::move(level));
+    model.levels.push_back(KeptLevel(s, t.lambda, mu));
     if (options_.exact_reconstruction) all_mu.push_back(mu);
     previous_mu = std::move(mu);
     previous_level = s;

@@ -201,6 +201,10 @@ class ResidualTransform {
 
  private:
   SgLighting Run(const sphere::EquirectImage& input, sphere::EquirectImage* owned, TransformReport* report);
+  // scratch_.grids for `input` (see Run), its storage taken from `owned` where it can be.
+  void PrepareGrids(const sphere::EquirectImage& input, sphere::EquirectImage* owned);
+  std::vector<glm::vec3> FitLevel(const LevelTables& t, const sphere::EquirectImage& residue, int s, float keep,
+                                  int* kept);
   // coarse_correction: `leftover` is what every level left, on the grid of the finest level it was
   // computed for; the two levels below the finest kept one refit it.
   void CorrectCoarserLevels(const sphere::EquirectImage& leftover, int input_width, int input_height, float keep,

@@ -93,6 +93,15 @@ struct ResidualTransformGpu::Tables {
   gl::Buffer gram_begin{gl::NoCreate}, gram_entries{gl::NoCreate};
 };
 
+struct ResidualTransformGpu::Readback {
+  std::vector<std::uint8_t> bytes;     // results_: the totals, flags and gate, then every level's μ
+  std::vector<std::size_t> mu_offset;  // level s's amplitudes in `bytes`
+  std::vector<double> totals;          // kSlots slots of kSlotDoubles
+  std::vector<std::uint32_t> flags;    // per level: the SRBFs its keep rule kept
+  int levels_run = 0;
+  std::vector<double> level_ms;
+};
+
 ResidualTransformGpu::ResidualTransformGpu(ResidualTransformOptions options)
     : options_(options), pool_(std::make_unique<ThreadPool>(options.threads)) {
   options_.Check();
@@ -333,29 +342,7 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   Bind(gate_, 9);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
 
-  // Working grids, finest first, each area-resampled from the next finer one; the finest from
-  // the frame, with NaN/Inf/negative channels clamped to 0 on the way.
-  const int levels = options_.levels;
-  glClearNamedBufferData(counters_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
-  {
-    const Grid& g = *grids_.back();
-    glBindTextureUnit(0, frame);
-    Bind(g.image, 1);
-    Bind(counters_, 2);
-    SetSize(resample_texture_, "uSourceSize", input_width, input_height);
-    SetSize(resample_texture_, "uTargetSize", g.width, g.height);
-    resample_texture_.DispatchCovering(static_cast<unsigned>(g.width), static_cast<unsigned>(g.height));
-    StorageBarrier();
-  }
-  for (int s = levels - 2; s >= 0; --s) {
-    const Grid &finer = *grids_[static_cast<std::size_t>(s) + 1], &g = *grids_[static_cast<std::size_t>(s)];
-    Bind(finer.image, 0);
-    Bind(g.image, 1);
-    SetSize(resample_, "uSourceSize", finer.width, finer.height);
-    SetSize(resample_, "uTargetSize", g.width, g.height);
-    resample_.DispatchCovering(static_cast<unsigned>(g.width), static_cast<unsigned>(g.height));
-    StorageBarrier();
-  }
+  ResampleIntoGrids(frame, input_width, input_height);
   const Grid& finest = *grids_.back();
   Sums(finest.image, finest, kSlotFrame);
   const SphereSums frame_sums = SumsOf(totals_.Read<double>(), kSlotFrame);
@@ -385,165 +372,24 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   std::vector<std::size_t> mu_offset;  // each level's amplitudes in results_
   std::size_t offset = totals_bytes + kFlagsBytes + kGateBytes;
 
-  // Every level queued at once (see the header): R_{<s}, the residue, the level's fit, its keep
-  // rule, the residue it leaves, and the gate.
+  // Every level queued at once (see the header), each one's amplitudes copied into results_.
   int recon = 0;
-  for (int s = 0; s < levels; ++s) {
-    const auto level = static_cast<std::size_t>(s);
-    glQueryCounter(level_queries_[level], GL_TIMESTAMP);
-    const Grid& grid = *grids_[level];
-    const gl::Buffer &residue = level_residue_[level], &remaining = level_remaining_[level], &mu = level_mu_[level];
-    // R_{<s} on this grid and the residue r_s = I_s − R_{<s}: at level 0 the constant; then every
-    // coarser level evaluated here, or (exact_reconstruction off) the coarser reconstruction
-    // magnified plus the previous level evaluated here.
-    if (s == 0 || options_.exact_reconstruction) {
-      const float fill[4] = {model.constant.x, model.constant.y, model.constant.z, 0.f};
-      glClearNamedBufferSubData(recon_[recon].id(), GL_RGBA32F, 0, grid.pixels() * kPixelBytes, GL_RGBA, GL_FLOAT,
-                                fill);
-      if (s == 0) Reconstruct(nullptr, mu, recon_[recon], recon_[recon], 1.f, grid, &residue);
-      for (int l = 0; l < s; ++l)
-        Reconstruct(&TablesFor(l, grid.width, grid.height, false), level_mu_[static_cast<std::size_t>(l)],
-                    recon_[recon], recon_[recon], 1.f, grid, l == s - 1 ? &residue : nullptr);
-    } else {
-      const Grid& coarser = *grids_[level - 1];
-      Bind(recon_[recon], 0);
-      Bind(recon_[1 - recon], 1);
-      SetSize(upsample_, "uSourceSize", coarser.width, coarser.height);
-      SetSize(upsample_, "uTargetSize", grid.width, grid.height);
-      upsample_.DispatchCovering(static_cast<unsigned>(grid.width), static_cast<unsigned>(grid.height));
-      StorageBarrier();
-      recon = 1 - recon;
-      Reconstruct(&TablesFor(s - 1, grid.width, grid.height, false), level_mu_[level - 1], recon_[recon], recon_[recon],
-                  1.f, grid, &residue);
-    }
-    Sums(residue, grid, SlotBefore(s));
-
-    // The level's amplitudes (eq. 4.17) and the residue they leave (eq. 4.18), refitted by the
-    // extra sweeps, then the keep rule.
-    const Tables& t = TablesFor(s, grid.width, grid.height, true);
-    Project(t, residue, mu, false);
-    if (SweepsOf(options_, s) > 1) {
-      // The refits on the amplitudes (lighting_gram.comp), as the CPU path makes them:
-      // sweep_mu_[0] keeps P(r), each sweep writes sweep_mu_[1] and copies it back into μ.
-      const auto bytes = static_cast<GLsizeiptr>(static_cast<std::size_t>(t.srbfs) * kPixelBytes);
-      glCopyNamedBufferSubData(mu.id(), sweep_mu_[0].id(), 0, 0, bytes);
-      glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-      for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
-        Bind(sweep_mu_[0], 0);
-        Bind(t.gram_begin, 1);
-        Bind(t.gram_entries, 2);
-        Bind(mu, 3);
-        Bind(sweep_mu_[1], 4);
-        gram_.Set("uCount", t.srbfs)
-            .Set("uStep", RelaxationOf(options_, s))
-            .DispatchCovering(static_cast<unsigned>(t.srbfs));
-        StorageBarrier();
-        glCopyNamedBufferSubData(sweep_mu_[1].id(), mu.id(), 0, 0, bytes);
-        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
-      }
-    }
-    Bind(mu, 0);
-    Bind(flags_, 1);
-    keep_.Set("uCount", t.srbfs)
-        .Set("uKeep", keep)
-        .Set("uFlagsSlot", s)
-        .DispatchCovering(static_cast<unsigned>(t.srbfs));
-    StorageBarrier();
-    Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr);
-    Sums(remaining, grid, SlotAfter(s));
-    Bind(totals_, 0);
-    Bind(flags_, 1);
-    gate_program_.Set("uLevel", s).Set("uBeforeSlot", SlotBefore(s)).Set("uAfterSlot", SlotAfter(s));
-    glProgramUniform1d(gate_program_.id(), gate_program_.Uniform("uAbsLimit"), abs_limit);
-    gate_program_.Use();
-    glDispatchCompute(1, 1, 1);
-    StorageBarrier();
+  for (int s = 0; s < options_.levels; ++s) {
+    const std::size_t mu_bytes =
+        static_cast<std::size_t>(QueueLevel(s, model.constant, keep, abs_limit, &recon)) * kPixelBytes;
     mu_offset.push_back(offset);
-    const std::size_t mu_bytes = static_cast<std::size_t>(t.srbfs) * kPixelBytes;
-    glCopyNamedBufferSubData(mu.id(), results_.id(), 0, static_cast<GLintptr>(offset),
-                             static_cast<GLsizeiptr>(mu_bytes));
+    glCopyNamedBufferSubData(level_mu_[static_cast<std::size_t>(s)].id(), results_.id(), 0,
+                             static_cast<GLintptr>(offset), static_cast<GLsizeiptr>(mu_bytes));
     offset += mu_bytes;
   }
-  glQueryCounter(level_queries_[static_cast<std::size_t>(levels)], GL_TIMESTAMP);
-  glCopyNamedBufferSubData(totals_.id(), results_.id(), 0, 0, static_cast<GLsizeiptr>(totals_bytes));
-  glCopyNamedBufferSubData(flags_.id(), results_.id(), 0, static_cast<GLintptr>(totals_bytes),
-                           static_cast<GLsizeiptr>(kFlagsBytes));
-  glCopyNamedBufferSubData(gate_.id(), results_.id(), 0, static_cast<GLintptr>(totals_bytes + kFlagsBytes),
-                           static_cast<GLsizeiptr>(kGateBytes));
-  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-  const std::vector<std::uint8_t> results = results_.Read<std::uint8_t>(offset);
-  std::vector<double> totals(kSlotDoubles * kSlots);
-  std::memcpy(totals.data(), results.data(), totals_bytes);
-  std::uint32_t flags[kMaxLevels];
-  std::memcpy(flags, results.data() + totals_bytes, kFlagsBytes);
-  std::uint32_t gate[2];
-  std::memcpy(gate, results.data() + totals_bytes + kFlagsBytes, kGateBytes);
-  report.gpu_levels_run = static_cast<int>(gate[1]);
-  std::vector<double> level_ms(static_cast<std::size_t>(levels), 0.0);
-  {
-    std::vector<GLuint64> stamps(static_cast<std::size_t>(levels) + 1);
-    for (std::size_t i = 0; i < stamps.size(); ++i)
-      glGetQueryObjectui64v(level_queries_[i], GL_QUERY_RESULT, &stamps[i]);
-    for (std::size_t i = 0; i < level_ms.size(); ++i)
-      level_ms[i] = static_cast<double>(stamps[i + 1] - stamps[i]) * 1e-6;
-  }
+  const Readback queued = ReadQueued(std::move(mu_offset), offset);
+  report.gpu_levels_run = queued.levels_run;
   glClearNamedBufferData(gate_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT,
                          nullptr);  // the correction's passes run
 
-  // The rules again, on the same sums and with the same comparisons as the gate, to pick the levels.
-  bool converged = false;
   const gl::Buffer* leftover = nullptr;  // what every kept level left, for the coarse correction
   int leftover_grid = 0;
-  for (int s = 0; s < levels; ++s) {
-    const auto level = static_cast<std::size_t>(s);
-    const SphereSums before_sums = SumsOf(totals, SlotBefore(s)), after_sums = SumsOf(totals, SlotAfter(s));
-    if (s > 0 && before_sums.abs < abs_limit) {
-      report.stop_reason = "residue below threshold before level " + std::to_string(s);
-      converged = true;
-      break;
-    }
-    const Grid& grid = *grids_[level];
-    const Tables& t = TablesFor(s, grid.width, grid.height, true);
-    const int kept = static_cast<int>(flags[level]);
-    LevelReport lr;
-    lr.level = s;
-    lr.srbfs_total = t.srbfs;
-    lr.srbfs_kept = kept;
-    lr.lambda = t.lambda;
-    lr.width = grid.width;
-    lr.height = grid.height;
-    lr.residue_before = before_sums.MeanAbs() / report.mean_radiance;
-    lr.ms = level_ms[level];
-    if (!(after_sums.sq < before_sums.sq && kept > 0)) {  // LevelReducesResidue on the squares
-      lr.srbfs_kept = 0;
-      lr.residue_after = lr.residue_before;
-      report.levels.push_back(lr);
-      report.stop_reason = "level " + std::to_string(s) + " does not reduce the residue";
-      leftover = &level_residue_[level];
-      leftover_grid = s;
-      break;
-    }
-    lr.residue_after = after_sums.MeanAbs() / report.mean_radiance;
-    std::vector<glm::vec4> amplitudes(static_cast<std::size_t>(t.srbfs));
-    std::memcpy(amplitudes.data(), results.data() + mu_offset[level], amplitudes.size() * sizeof(glm::vec4));
-    SgLevel kept_level;
-    kept_level.level = s;
-    kept_level.lambda = t.lambda;
-    for (std::size_t c = 0; c < amplitudes.size(); ++c) {
-      const glm::vec3 m(amplitudes[c]);
-      if (m == glm::vec3(0)) continue;
-      kept_level.indices.push_back(static_cast<int>(c));
-      kept_level.amplitudes.push_back(m);
-    }
-    model.levels.push_back(std::move(kept_level));
-    leftover = &level_remaining_[level];
-    leftover_grid = s;
-    report.levels.push_back(lr);
-    if (after_sums.abs < abs_limit) {
-      report.stop_reason = "residue below threshold after level " + std::to_string(s);
-      break;
-    }
-  }
+  const bool converged = PickLevels(queued, abs_limit, &model, &report, &leftover, &leftover_grid);
   if (report.stop_reason.empty()) report.stop_reason = "maximum level reached";
   if (leftover && CoarseCorrectionApplies(options_, static_cast<int>(model.levels.size()), converged)) {
     const auto correction_start = Clock::now();
@@ -553,6 +399,193 @@ SgLighting ResidualTransformGpu::RunOnTexture(GLuint frame, int input_width, int
   report.total_ms = MsSince(start);
   if (report_out) *report_out = report;
   return model;
+}
+
+// The residue's pyramid: working grids, finest first, each area-resampled from the next finer
+// one; the finest from the frame, with NaN/Inf/negative channels clamped to 0 (and counted in
+// counters_) on the way.
+void ResidualTransformGpu::ResampleIntoGrids(GLuint frame, int input_width, int input_height) {
+  const int levels = options_.levels;
+  glClearNamedBufferData(counters_.id(), GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+  {
+    const Grid& g = *grids_.back();
+    glBindTextureUnit(0, frame);
+    Bind(g.image, 1);
+    Bind(counters_, 2);
+    SetSize(resample_texture_, "uSourceSize", input_width, input_height);
+    SetSize(resample_texture_, "uTargetSize", g.width, g.height);
+    resample_texture_.DispatchCovering(static_cast<unsigned>(g.width), static_cast<unsigned>(g.height));
+    StorageBarrier();
+  }
+  for (int s = levels - 2; s >= 0; --s) {
+    const Grid &finer = *grids_[static_cast<std::size_t>(s) + 1], &g = *grids_[static_cast<std::size_t>(s)];
+    Bind(finer.image, 0);
+    Bind(g.image, 1);
+    SetSize(resample_, "uSourceSize", finer.width, finer.height);
+    SetSize(resample_, "uTargetSize", g.width, g.height);
+    resample_.DispatchCovering(static_cast<unsigned>(g.width), static_cast<unsigned>(g.height));
+    StorageBarrier();
+  }
+}
+
+// Level s queued: R_{<s} on its grid and the residue r_s = I_s − R_{<s}; its amplitudes (eq.
+// 4.17), refitted by the extra sweeps; the keep rule; the residue it leaves (eq. 4.18); and the
+// gate, which closes once a level stops the transform. Returns the level's SRBF count (its
+// amplitudes in level_mu_[s]). *recon_index is the scratch
+// reconstruction (of recon_) that holds R_{<s}; a magnified one moves it to the other.
+int ResidualTransformGpu::QueueLevel(int s, const glm::vec3& constant, float keep, double abs_limit, int* recon_index) {
+  int& recon = *recon_index;
+  const auto level = static_cast<std::size_t>(s);
+  glQueryCounter(level_queries_[level], GL_TIMESTAMP);
+  const Grid& grid = *grids_[level];
+  const gl::Buffer &residue = level_residue_[level], &remaining = level_remaining_[level], &mu = level_mu_[level];
+  // R_{<s} on this grid and the residue r_s = I_s − R_{<s}: at level 0 the constant; then every
+  // coarser level evaluated here, or (exact_reconstruction off) the coarser reconstruction
+  // magnified plus the previous level evaluated here.
+  if (s == 0 || options_.exact_reconstruction) {
+    const float fill[4] = {constant.x, constant.y, constant.z, 0.f};
+    glClearNamedBufferSubData(recon_[recon].id(), GL_RGBA32F, 0, grid.pixels() * kPixelBytes, GL_RGBA, GL_FLOAT, fill);
+    if (s == 0) Reconstruct(nullptr, mu, recon_[recon], recon_[recon], 1.f, grid, &residue);
+    for (int l = 0; l < s; ++l)
+      Reconstruct(&TablesFor(l, grid.width, grid.height, false), level_mu_[static_cast<std::size_t>(l)], recon_[recon],
+                  recon_[recon], 1.f, grid, l == s - 1 ? &residue : nullptr);
+  } else {
+    const Grid& coarser = *grids_[level - 1];
+    Bind(recon_[recon], 0);
+    Bind(recon_[1 - recon], 1);
+    SetSize(upsample_, "uSourceSize", coarser.width, coarser.height);
+    SetSize(upsample_, "uTargetSize", grid.width, grid.height);
+    upsample_.DispatchCovering(static_cast<unsigned>(grid.width), static_cast<unsigned>(grid.height));
+    StorageBarrier();
+    recon = 1 - recon;
+    Reconstruct(&TablesFor(s - 1, grid.width, grid.height, false), level_mu_[level - 1], recon_[recon], recon_[recon],
+                1.f, grid, &residue);
+  }
+  Sums(residue, grid, SlotBefore(s));
+
+  // The level's amplitudes (eq. 4.17) and the residue they leave (eq. 4.18), refitted by the
+  // extra sweeps, then the keep rule.
+  const Tables& t = TablesFor(s, grid.width, grid.height, true);
+  Project(t, residue, mu, false);
+  RefitSweeps(t, mu, s);
+  Bind(mu, 0);
+  Bind(flags_, 1);
+  keep_.Set("uCount", t.srbfs).Set("uKeep", keep).Set("uFlagsSlot", s).DispatchCovering(static_cast<unsigned>(t.srbfs));
+  StorageBarrier();
+  Reconstruct(&t, mu, residue, remaining, -1.f, grid, nullptr);
+  Sums(remaining, grid, SlotAfter(s));
+  Bind(totals_, 0);
+  Bind(flags_, 1);
+  gate_program_.Set("uLevel", s).Set("uBeforeSlot", SlotBefore(s)).Set("uAfterSlot", SlotAfter(s));
+  glProgramUniform1d(gate_program_.id(), gate_program_.Uniform("uAbsLimit"), abs_limit);
+  gate_program_.Use();
+  glDispatchCompute(1, 1, 1);
+  StorageBarrier();
+  return t.srbfs;
+}
+
+// The refits on the amplitudes (lighting_gram.comp), as the CPU path makes them: sweep_mu_[0]
+// keeps P(r), each sweep writes sweep_mu_[1] and copies it back into μ.
+void ResidualTransformGpu::RefitSweeps(const Tables& t, const gl::Buffer& mu, int s) {
+  if (SweepsOf(options_, s) <= 1) return;
+  const auto bytes = static_cast<GLsizeiptr>(static_cast<std::size_t>(t.srbfs) * kPixelBytes);
+  glCopyNamedBufferSubData(mu.id(), sweep_mu_[0].id(), 0, 0, bytes);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  for (int sweep = 1; sweep < SweepsOf(options_, s); ++sweep) {
+    Bind(sweep_mu_[0], 0);
+    Bind(t.gram_begin, 1);
+    Bind(t.gram_entries, 2);
+    Bind(mu, 3);
+    Bind(sweep_mu_[1], 4);
+    gram_.Set("uCount", t.srbfs)
+        .Set("uStep", RelaxationOf(options_, s))
+        .DispatchCovering(static_cast<unsigned>(t.srbfs));
+    StorageBarrier();
+    glCopyNamedBufferSubData(sweep_mu_[1].id(), mu.id(), 0, 0, bytes);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+  }
+}
+
+ResidualTransformGpu::Readback ResidualTransformGpu::ReadQueued(std::vector<std::size_t> mu_offset, std::size_t end) {
+  const int levels = options_.levels;
+  const std::size_t totals_bytes = sizeof(double) * kSlotDoubles * kSlots;
+  glQueryCounter(level_queries_[static_cast<std::size_t>(levels)], GL_TIMESTAMP);
+  glCopyNamedBufferSubData(totals_.id(), results_.id(), 0, 0, static_cast<GLsizeiptr>(totals_bytes));
+  glCopyNamedBufferSubData(flags_.id(), results_.id(), 0, static_cast<GLintptr>(totals_bytes),
+                           static_cast<GLsizeiptr>(kFlagsBytes));
+  glCopyNamedBufferSubData(gate_.id(), results_.id(), 0, static_cast<GLintptr>(totals_bytes + kFlagsBytes),
+                           static_cast<GLsizeiptr>(kGateBytes));
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  Readback r;
+  r.bytes = results_.Read<std::uint8_t>(end);
+  r.mu_offset = std::move(mu_offset);
+  r.totals.resize(kSlotDoubles * kSlots);
+  std::memcpy(r.totals.data(), r.bytes.data(), totals_bytes);
+  r.flags.resize(kMaxLevels);
+  std::memcpy(r.flags.data(), r.bytes.data() + totals_bytes, kFlagsBytes);
+  std::uint32_t gate[2];
+  std::memcpy(gate, r.bytes.data() + totals_bytes + kFlagsBytes, kGateBytes);
+  r.levels_run = static_cast<int>(gate[1]);
+  std::vector<GLuint64> stamps(static_cast<std::size_t>(levels) + 1);
+  for (std::size_t i = 0; i < stamps.size(); ++i) glGetQueryObjectui64v(level_queries_[i], GL_QUERY_RESULT, &stamps[i]);
+  r.level_ms.assign(static_cast<std::size_t>(levels), 0.0);
+  for (std::size_t i = 0; i < r.level_ms.size(); ++i)
+    r.level_ms[i] = static_cast<double>(stamps[i + 1] - stamps[i]) * 1e-6;
+  return r;
+}
+
+bool ResidualTransformGpu::PickLevels(const Readback& r, double abs_limit, SgLighting* model, TransformReport* report,
+                                      const gl::Buffer** leftover, int* leftover_grid) {
+  for (int s = 0; s < options_.levels; ++s) {
+    const auto level = static_cast<std::size_t>(s);
+    const SphereSums before_sums = SumsOf(r.totals, SlotBefore(s)), after_sums = SumsOf(r.totals, SlotAfter(s));
+    if (s > 0 && before_sums.abs < abs_limit) {
+      report->stop_reason = "residue below threshold before level " + std::to_string(s);
+      return true;
+    }
+    const Grid& grid = *grids_[level];
+    const Tables& t = TablesFor(s, grid.width, grid.height, true);
+    const int kept = static_cast<int>(r.flags[level]);
+    LevelReport lr;
+    lr.level = s;
+    lr.srbfs_total = t.srbfs;
+    lr.srbfs_kept = kept;
+    lr.lambda = t.lambda;
+    lr.width = grid.width;
+    lr.height = grid.height;
+    lr.residue_before = before_sums.MeanAbs() / report->mean_radiance;
+    lr.ms = r.level_ms[level];
+    if (!(after_sums.sq < before_sums.sq && kept > 0)) {  // LevelReducesResidue on the squares
+      lr.srbfs_kept = 0;
+      lr.residue_after = lr.residue_before;
+      report->levels.push_back(lr);
+      report->stop_reason = "level " + std::to_string(s) + " does not reduce the residue";
+      *leftover = &level_residue_[level];
+      *leftover_grid = s;
+      return false;
+    }
+    lr.residue_after = after_sums.MeanAbs() / report->mean_radiance;
+    std::vector<glm::vec4> amplitudes(static_cast<std::size_t>(t.srbfs));
+    std::memcpy(amplitudes.data(), r.bytes.data() + r.mu_offset[level], amplitudes.size() * sizeof(glm::vec4));
+    SgLevel kept_level;
+    kept_level.level = s;
+    kept_level.lambda = t.lambda;
+    for (std::size_t c = 0; c < amplitudes.size(); ++c) {
+      const glm::vec3 m(amplitudes[c]);
+      if (m == glm::vec3(0)) continue;
+      kept_level.indices.push_back(static_cast<int>(c));
+      kept_level.amplitudes.push_back(m);
+    }
+    model->levels.push_back(std::move(kept_level));
+    *leftover = &level_remaining_[level];
+    *leftover_grid = s;
+    report->levels.push_back(lr);
+    if (after_sums.abs < abs_limit) {
+      report->stop_reason = "residue below threshold after level " + std::to_string(s);
+      break;
+    }
+  }
+  return false;
 }
 
 }  // namespace odvr::lighting

@@ -49,7 +49,21 @@ class ResidualTransformGpu {
   struct Tables;
   SgLighting RunOnTexture(GLuint frame, int input_width, int input_height, std::chrono::steady_clock::time_point start,
                           TransformReport* report);
+  struct Readback;
   void PrepareGrids(int input_width, int input_height);
+  void ResampleIntoGrids(GLuint frame, int input_width, int input_height);
+  int QueueLevel(int s, const glm::vec3& constant, float keep, double abs_limit, int* recon_index);
+  void RefitSweeps(const Tables& t, const gl::Buffer& mu, int s);
+  // What the queued levels left for the CPU, in one transfer: the slots' sums, each level's kept
+  // SRBFs, how many levels the gate let run, their GPU times, and their amplitudes (results_ up
+  // to `end`, level s's from mu_offset[s]).
+  Readback ReadQueued(std::vector<std::size_t> mu_offset, std::size_t end);
+  // The stop and keep rules again, on the same sums and with the same comparisons as the gate:
+  // the kept levels into *model, each level's line and the stop reason into *report. Returns
+  // whether the residue fell below the threshold; *leftover is what every kept level left (for
+  // the coarse correction), on grids_[*leftover_grid].
+  bool PickLevels(const Readback& r, double abs_limit, SgLighting* model, TransformReport* report,
+                  const gl::Buffer** leftover, int* leftover_grid);
   // `projection`: the by-SRBF lists too (only a level's own grid projects).
   const Tables& TablesFor(int level, int width, int height, bool projection);
   // Sums of `image` over the sphere into slot `slot` of totals_ (no readback).

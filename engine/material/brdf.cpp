@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <sstream>
+#include <string>
 
 #include "core/constants.h"
+#include "core/error.h"
 
 namespace odvr::material {
 
@@ -582,6 +585,51 @@ glm::dvec3 ShadeUnderSgLights(std::span<const Lobe> lobes, std::span<const light
   glm::dvec3 sum(0);
   for (const auto& light : lights) sum += ShadeUnderSgLight(lobes, light);
   return sum;
+}
+
+namespace {
+
+std::string FormatBound(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
+void CheckIn(const char* model, const char* name, double x, double lo, double hi, bool open_below = false) {
+  const bool above = open_below ? x > lo : x >= lo;
+  if (!(above && x <= hi))
+    throw Error(std::string("BRDF ") + model, std::string(name) + " must be in " + (open_below ? "(" : "[") +
+                                                  FormatBound(lo) + ", " + FormatBound(hi) + "], got " +
+                                                  FormatBound(x));
+}
+
+void CheckColour(const char* model, const char* name, const glm::dvec3& c) {
+  for (int i = 0; i < 3; ++i) CheckIn(model, name, c[i], 0, 1);
+}
+
+}  // namespace
+
+void CheckBrdf(const Brdf& brdf) {
+  if (const auto* l = std::get_if<Lambertian>(&brdf)) {
+    CheckColour("lambert", "albedo", l->albedo);
+  } else if (const auto* p = std::get_if<Phong>(&brdf)) {
+    CheckColour("phong", "ks", p->ks);
+    CheckIn("phong", "exponent", p->exponent, 0, 1e5);
+  } else if (const auto* b = std::get_if<BlinnPhong>(&brdf)) {
+    CheckColour("blinn", "ks", b->ks);
+    CheckIn("blinn", "exponent", b->exponent, 0, 1e5);
+  } else if (const auto* w = std::get_if<Ward>(&brdf)) {
+    CheckColour("ward", "rho_s", w->rho_s);
+    CheckIn("ward", "alpha_x", w->alpha_x, 0, 1, true);
+    CheckIn("ward", "alpha_y", w->alpha_y, 0, 1, true);
+  } else if (const auto* c = std::get_if<CookTorrance>(&brdf)) {
+    CheckColour("ct", "f0", c->f0);
+    CheckIn("ct", "alpha", c->alpha, 0, 1, true);
+  } else if (const auto* m = std::get_if<MetallicRoughness>(&brdf)) {
+    CheckColour("mr", "base colour", m->base_color);
+    CheckIn("mr", "metallic", m->metallic, 0, 1);
+    CheckIn("mr", "roughness", m->roughness, 0, 1);
+  }
 }
 
 }  // namespace odvr::material

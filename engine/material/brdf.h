@@ -170,6 +170,13 @@ struct MetallicRoughness {
 
 using Brdf = std::variant<Lambertian, Phong, BlinnPhong, Ward, CookTorrance, MetallicRoughness>;
 
+// The parameters' ranges, one place for every caller: colours (albedo, ks, rho_s, f0, base
+// colour), metallic and roughness in [0, 1]; Phong and Blinn-Phong exponents in [0, 10⁵] (past
+// that the lobe is narrower than any SG level resolves); Ward's and Cook-Torrance's α in (0, 1]
+// (α = 0 divides by zero). Throws odvr::Error naming the model and the value out of range; a
+// NaN is out of every range.
+void CheckBrdf(const Brdf& brdf);
+
 // One term of the lobe sum: weight ⊙ G(wi; sg) (1 + linear·wi). The linear factor's integral
 // against an SG light is exact: ∫ P (1 + ℓ·wi) = ∫P (1 + ℓ·c_P SgMeanCosine(λ_P)) for the product
 // P of lobe and light (axis c_P, λ_P), since an SG's mean direction is c (coth λ − 1/λ).

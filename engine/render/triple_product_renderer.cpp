@@ -5,7 +5,6 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
-#include <sstream>
 
 #include "core/constants.h"
 #include "core/error.h"
@@ -82,72 +81,6 @@ GpuTerm ToGpuTerm(const material::Brdf& brdf) {
 std::string Lower(std::string s) {
   for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
-}
-
-std::vector<double> ParseNumbers(const std::string& list, const std::string& where) {
-  std::vector<double> out;
-  std::stringstream ss(list);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      std::size_t used = 0;
-      const double v = std::stod(item, &used);
-      if (used != item.size() || !std::isfinite(v)) throw std::invalid_argument(item);
-      out.push_back(v);
-    } catch (const std::exception&) {
-      throw UsageError(where, "'" + item + "' is not a number");
-    }
-  }
-  return out;
-}
-
-material::Brdf ParseTerm(const std::string& term, const std::string& where) {
-  const auto colon = term.find(':');
-  if (colon == std::string::npos) {
-    const auto v = ParseNumbers(term, where);
-    if (v.size() != 3) throw UsageError(where, "'" + term + "': want KD,KS,N or MODEL:PARAMS");
-    throw UsageError(where, "internal: KD,KS,N is two terms");  // handled by the caller
-  }
-  const std::string model = Lower(term.substr(0, colon));
-  const std::string rest = term.substr(colon + 1);
-  const bool beckmann = rest.size() > 9 && Lower(rest.substr(rest.size() - 9)) == ",beckmann";
-  const auto v = ParseNumbers(beckmann ? rest.substr(0, rest.size() - 9) : rest, where);
-  const auto want = [&](std::size_t n, const char* form) {
-    if (v.size() != n) throw UsageError(where, "'" + term + "': want " + form);
-  };
-  const auto in01 = [&](double x, const char* name) {
-    if (x < 0 || x > 1) throw UsageError(where, "'" + term + "': " + name + " must be in [0, 1]");
-  };
-  if (model == "lambert") {
-    want(3, "lambert:R,G,B");
-    for (double x : v) in01(x, "albedo");
-    return material::Lambertian{{v[0], v[1], v[2]}};
-  }
-  if (model == "phong" || model == "blinn") {
-    want(4, model == "phong" ? "phong:R,G,B,N" : "blinn:R,G,B,S");
-    for (int i = 0; i < 3; ++i) in01(v[static_cast<std::size_t>(i)], "ks");
-    if (v[3] < 0 || v[3] > 1e5) throw UsageError(where, "'" + term + "': exponent must be in [0, 1e5]");
-    if (model == "phong") return material::Phong{{v[0], v[1], v[2]}, v[3]};
-    return material::BlinnPhong{{v[0], v[1], v[2]}, v[3]};
-  }
-  if (model == "ward") {
-    want(4, "ward:R,G,B,ALPHA");
-    for (int i = 0; i < 3; ++i) in01(v[static_cast<std::size_t>(i)], "rho_s");
-    if (!(v[3] > 0 && v[3] <= 1)) throw UsageError(where, "'" + term + "': alpha must be in (0, 1]");
-    return material::Ward{{v[0], v[1], v[2]}, v[3], v[3]};
-  }
-  if (model == "ct") {
-    want(4, "ct:F0R,F0G,F0B,ALPHA[,beckmann]");
-    for (int i = 0; i < 3; ++i) in01(v[static_cast<std::size_t>(i)], "f0");
-    if (!(v[3] > 0 && v[3] <= 1)) throw UsageError(where, "'" + term + "': alpha must be in (0, 1]");
-    return material::CookTorrance{{v[0], v[1], v[2]}, v[3], beckmann ? material::Ndf::kBeckmann : material::Ndf::kGgx};
-  }
-  if (model == "mr") {
-    want(5, "mr:R,G,B,METALLIC,ROUGHNESS");
-    for (double x : v) in01(x, "every value");
-    return material::MetallicRoughness{{v[0], v[1], v[2]}, v[3], v[4]};
-  }
-  throw UsageError(where, "unknown BRDF '" + model + "' (lambert, phong, blinn, ward, ct, mr)");
 }
 
 // Everything of the lighting that the shading stage reads, in the world frame.
@@ -281,33 +214,7 @@ double SampleGroundLitMap(const GroundLitMapLayout& layout, const std::vector<fl
 
 }  // namespace detail
 
-// --- overrides, options -------------------------------------------------------------------------
-
-MaterialOverride ParseMaterialOverride(const std::string& text) {
-  const std::string where = "--material " + text;
-  MaterialOverride out;
-  std::string spec = text;
-  if (const auto eq = text.find('='); eq != std::string::npos) {
-    out.material = text.substr(0, eq);
-    spec = text.substr(eq + 1);
-  }
-  if (spec.empty()) throw UsageError(where, "no BRDF given");
-  if (spec.find(':') == std::string::npos) {
-    const auto v = ParseNumbers(spec, where);
-    if (v.size() != 3) throw UsageError(where, "want KD,KS,N or MODEL:PARAMS[+MODEL:PARAMS]");
-    if (v[0] < 0 || v[0] > 1 || v[1] < 0 || v[1] > 1 || v[0] + v[1] > 1)
-      throw UsageError(where, "kd and ks must be in [0, 1] with kd + ks <= 1");
-    if (v[2] < 0 || v[2] > 1e5) throw UsageError(where, "the Phong exponent must be in [0, 1e5]");
-    out.brdfs = {material::Lambertian{glm::dvec3(v[0])}, material::Phong{glm::dvec3(v[1]), v[2]}};
-    return out;
-  }
-  std::stringstream ss(spec);
-  std::string term;
-  while (std::getline(ss, term, '+')) out.brdfs.push_back(ParseTerm(term, where));
-  if (out.brdfs.empty() || out.brdfs.size() > static_cast<std::size_t>(TripleProductRenderer::kTermsPerMaterial))
-    throw UsageError(where, "give one or two BRDF terms");
-  return out;
-}
+// --- options -------------------------------------------------------------------------
 
 long long detail::FirstShadingPassPixels(const RenderOptions& options, int width, int height) {
   const long long w = width, h = height, k = options.supersample;
@@ -572,6 +479,8 @@ void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides
   // material's row in the buffer: its kTermsPerMaterial terms, then one whose colour is the
   // radiance it emits: the glTF material's, none under an override, which replaces the whole
   // material (as the Cycles references' paint overrides do: bench render's paints cover the lamps).
+  for (const auto& o : overrides)
+    for (const auto& brdf : o.brdfs) material::CheckBrdf(brdf);
   std::vector<GpuTerm> gpu_terms;
   detail::MaterialTerms material_terms;
   im.emission.clear();

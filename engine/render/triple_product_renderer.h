@@ -72,12 +72,6 @@ struct MaterialOverride {
   std::vector<material::Brdf> brdfs;
 };
 
-// Parses "[NAME=]TERM[+TERM]" with TERM one of
-//   lambert:R,G,B | phong:R,G,B,N | blinn:R,G,B,S | ward:R,G,B,ALPHA | ct:F0R,F0G,F0B,ALPHA[,beckmann]
-//   | mr:R,G,B,METALLIC,ROUGHNESS | KD,KS,N (Lambertian kd grey + Phong ks grey, exponent N).
-// Throws odvr::UsageError naming the text and what is wrong.
-MaterialOverride ParseMaterialOverride(const std::string& text);
-
 // RenderOptions::supersample's bound (render_resolve.comp's weight table holds 3 × this).
 inline constexpr int kMaxSupersample = 4;
 

@@ -72,7 +72,7 @@ TEST(RunLight, SkyMapJsonReportModelAndPreview) {
   double levels_ms = 0;
   for (const auto& l : levels) levels_ms += l.at("ms").get<double>();
   EXPECT_LE(levels_ms, j.at("total_ms").get<double>());
-  // Issue 3's target: diffuse error ≤ 1 % from level 2 on.
+  // The target: diffuse error ≤ 1 % from level 2 on.
   for (std::size_t i = 2; i < levels.size(); ++i) EXPECT_LE(levels[i].at("diffuse_error").get<double>(), 0.01) << i;
 
   // The model the renderer loads, and the preview, are real files of what was reported.

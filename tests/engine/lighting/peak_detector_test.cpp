@@ -616,7 +616,7 @@ TEST(PeakDetector, RealSkyMapHasOnePeakAtTheSun) {
   EXPECT_LT(MaxValue(d.residue), 0.05f * static_cast<float>(best));
 }
 
-// Issue 3's claim: taking the peaks out first makes the model better where it matters.
+// The claim: taking the peaks out first makes the model better where it matters.
 // `glossy200`: whether the sharpest error is claimed too (see the sunrise test).
 void ExpectPeaksHelp(const std::string& name, bool glossy200 = true) {
   if (!HaveEnv(name)) GTEST_SKIP() << "../shared/data/env/" << name << ".exr is absent (the shared test data)";

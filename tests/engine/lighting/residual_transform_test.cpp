@@ -122,7 +122,7 @@ TEST(ResidualTransform, MagnifiedReconstructionComesAsCloseToTheLeastSquaresOpti
   // (evaluated exactly) does not contain. Magnified bilinearly, that bias held the diffuse and
   // glossy-20 errors at 5-20x the optimum on the same basis; through six samples per axis (the
   // default) it leaves the errors where evaluating every coarser level on the grid puts them
-  // (issue 3: within 1.5x of the optimum).
+  // (the target: within 1.5x of the optimum).
   const std::string path = std::string(ODVR_SHARED_DIR) + "/data/env/venice.exr";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent (the shared test data)";
   // Halved (area-preserving) to keep the least-squares fit fast: level 3 still has its 2 px per σ.

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/constants.h"
+#include "core/error.h"
 
 namespace odvr::material {
 namespace {
@@ -659,6 +660,28 @@ TEST(Brdf, WarpAtNormalIncidenceQuartersLambda) {
   const Sg o = WarpToIncident(d, wo);
   EXPECT_NEAR(glm::dot(o.axis, glm::dvec3(0, 0, 1)), 1.0, 1e-12);
   EXPECT_NEAR(o.lambda, 400 / (4 * std::sqrt(0.5)), 1e-9);
+}
+
+// CheckBrdf holds every model to its ranges: the bounds pass, a step past them and NaN do not.
+TEST(Brdf, CheckBrdfRefusesEachParameterPastItsBound) {
+  const glm::dvec3 one(1), zero(0);
+  for (const Brdf& good : {Brdf{Lambertian{one}}, Brdf{Phong{zero, 0}}, Brdf{Phong{one, 1e5}},
+                           Brdf{BlinnPhong{one, 1e5}}, Brdf{Ward{one, 1, 1e-6}}, Brdf{CookTorrance{one, 1e-6}},
+                           Brdf{MetallicRoughness{one, 1, 0}}, Brdf{MetallicRoughness{zero, 0, 1}}})
+    EXPECT_NO_THROW(CheckBrdf(good));
+  const double nan = std::nan("");
+  for (const Brdf& bad :
+       {Brdf{Lambertian{glm::dvec3(1, 1.01, 1)}}, Brdf{Lambertian{glm::dvec3(nan)}}, Brdf{Phong{one, -1}},
+        Brdf{Phong{one, 1e5 + 1}}, Brdf{BlinnPhong{glm::dvec3(-0.1), 10}}, Brdf{Ward{one, 0, 0.5}},
+        Brdf{Ward{one, 0.5, 1.5}}, Brdf{CookTorrance{one, 0}}, Brdf{CookTorrance{one, nan}},
+        Brdf{MetallicRoughness{one, 1.5, 0.5}}, Brdf{MetallicRoughness{one, 0, -0.5}}}) {
+    try {
+      CheckBrdf(bad);
+      ADD_FAILURE() << "accepted";
+    } catch (const odvr::Error& e) {
+      EXPECT_NE(std::string(e.what()).find("must be in"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace

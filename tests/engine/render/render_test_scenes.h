@@ -1,6 +1,7 @@
 #pragma once
 // Small scenes and lightings for the renderer tests: indexed meshes with smooth normals as
-// GltfScene primitives, and SG lightings with every HEALPix level filled.
+// GltfScene primitives, and SG lightings with every HEALPix level filled; the scenes, views and
+// lightings the renderer's pass tests share.
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <numbers>
@@ -8,6 +9,7 @@
 #include <string>
 
 #include "engine/lighting/sg_lighting.h"
+#include "engine/render/pinhole_camera.h"
 #include "engine/scene/gltf_scene.h"
 #include "engine/sphere/healpix.h"
 
@@ -98,6 +100,53 @@ inline glm::vec3 SkyRadiance(const glm::dvec3& d, int level) {
   const float up = static_cast<float>(0.5 + 0.5 * d.y), fx = static_cast<float>(0.5 + 0.5 * d.x);
   const float wiggle = level >= 2 ? static_cast<float>(0.5 + 0.5 * std::sin(5 * d.x + 3 * d.z)) : 1.f;
   return glm::vec3(0.2f + 0.6f * up + 0.2f * fx, 0.25f + 0.6f * up, 0.3f + 0.7f * up) * wiggle;
+}
+
+// The test views' size.
+inline constexpr int kW = 96, kH = 64;
+
+// A red glossy sphere beside a grey box on the ground.
+inline scene::GltfScene SphereAndBox() {
+  scene::GltfScene s;
+  s.materials = {Pbr("paint", {0.6f, 0.1f, 0.05f}, 0.5f, 0.35f), Pbr("plastic", {0.5f, 0.5f, 0.5f}, 0.f, 0.8f)};
+  s.primitives.push_back(SpherePrimitive({0, 0.5f, 0}, 0.5f, 0));
+  s.primitives.push_back(BoxPrimitive({0.6f, 0, -0.6f}, {1.0f, 1.2f, 0.6f}, 1));
+  Finish(&s);
+  return s;
+}
+
+inline render::PinholeCamera View(int w = kW, int h = kH) {
+  return render::PinholeCamera::LookAt({-1.2, 1.6, 3.2}, {0.2, 0.4, 0}, 40, w, h);
+}
+
+// Sky SGs on levels 0–3 plus a sun peak up and to the left, and a small constant.
+inline lighting::SgLighting SunnySky(int levels = 4) {
+  lighting::SgLighting l = FullLighting(levels, SkyRadiance);
+  l.constant = glm::vec3(0.05f);
+  l.peaks.push_back({glm::normalize(glm::dvec3(-0.6, 0.7, 0.3)), 3000.0, glm::vec3(2000.f, 1900.f, 1700.f)});
+  return l;
+}
+
+inline scene::GltfScene LambertSphere() {
+  scene::GltfScene s;
+  s.materials = {Pbr("ball", {0.5f, 0.5f, 0.5f}, 0.f, 1.f)};
+  s.primitives.push_back(SpherePrimitive({0, 1.0f, 0}, 0.5f, 0));
+  Finish(&s);
+  return s;
+}
+
+// A grey box floating 0.3 m above the ground, and a camera low beside it that sees its
+// underside, front and side: the faces that see the ground it shadows.
+inline scene::GltfScene FloatingBox() {
+  scene::GltfScene car;
+  car.materials = {Pbr("body", {0.5f, 0.5f, 0.5f}, 0.f, 0.9f)};
+  car.primitives.push_back(BoxPrimitive({-1.0f, 0.3f, -0.5f}, {1.0f, 1.2f, 0.5f}, 0));
+  Finish(&car);
+  return car;
+}
+
+inline render::PinholeCamera FloatingBoxCamera() {
+  return render::PinholeCamera::LookAt({-2.5, 0.2, 3.0}, {0, 0.6, 0}, 45, kW, kH);
 }
 
 }  // namespace odvr::testing
