@@ -20,6 +20,8 @@
 
 #include "app/bench/bench_common.h"
 #include "app/bench/bench_render.h"
+#include "app/bench/bench_render_set.h"
+#include "app/bench/render_rows.h"
 #include "app/flags/command_flags.h"
 #include "app/flags/render_switches.h"
 #include "core/atomic_file.h"
@@ -27,7 +29,6 @@
 #include "core/error.h"
 #include "engine/gl/context.h"
 #include "engine/image/image_io.h"
-#include "engine/image/ssim.h"
 #include "engine/lighting/lighting_builder.h"
 #include "engine/material/brdf.h"
 #include "engine/render/triple_product_renderer.h"
@@ -38,76 +39,20 @@ namespace odvr::app {
 namespace {
 
 namespace fs = std::filesystem;
+using render_rows::CameraFromJson;
+using render_rows::DefaultLobes;
+using render_rows::kDefaultCones;
+using render_rows::kDefaultLevels;
+using render_rows::kDefaultVoxels;
+using render_rows::KeepBelowHorizon;
+using render_rows::Reference;
+using render_rows::RenderRow;
+using render_rows::ReplaceLowerHemisphereByGround;
+using render_rows::Row;
+using render_rows::Vec3;
 
-// The default configuration, the centre of the one-at-a-time sweep.
-constexpr int kDefaultLevels = 5, kDefaultCones = 7, kDefaultVoxels = 128;
-
-struct Row {
-  std::string reference, method, lobes;  // method: "sg", "mc" or "mc-exact"; lobes: "iso-axis", ...
-  int width = 0, height = 0;
-  int levels = 0, cones = 0, voxels = 0, samples = 0;  // samples: MC rays per pixel
-  int supersample = 1;
-  double contrast = 0;  // RenderOptions::supersample_contrast (0 with supersample 1)
-  double mean_rel = 0, rel_l1 = 0, bias = 0, ssim = 0, shadow_mae = -1;  // shadow_mae < 0: no shadow reference
-  double shade_ms = 0, total_ms = 0;
-  double frame_shade_ms = 0, frame_total_ms = 0;  // the HD row: as the window player renders (median)
-  int car_pixels = 0, shadow_pixels = 0;
-};
-
-struct Reference {
-  std::string name;
-  sphere::EquirectImage env, rgb, shadow;  // shadow empty: none
-  std::vector<float> mask;
-  glm::dmat3 world_from_env{1.0};
-  glm::dmat4 world_from_model{1.0};
-  render::PinholeCamera camera;
-  fs::path model;
-  std::vector<render::MaterialOverride> materials;
-};
-
-double Luma(const float* c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
-
-glm::dvec3 Vec3(const nlohmann::json& j) {
-  return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()};
-}
-
-// Cycles' scene has the catcher under the car: seen from the car, below the horizon is that
-// plane, diffuse albedo 0.18 (references.json), lit by the map's upper half. Both renderers here
-// light from the map's lower half, so the map's lower half becomes that plane's radiance,
-// 0.18 E / π, E the horizontal irradiance from the upper half; the car's own shadow on the plane,
-// which Cycles does see, the renderers add (RenderOptions::ground_shadows_bounce). The plane
-// ends (60 m): within `keep_below_horizon` radians under the horizon the car's rays pass beyond
-// it and Cycles sees the map itself, which stays.
-void ReplaceLowerHemisphereByGround(sphere::EquirectImage* env, double albedo, double keep_below_horizon) {
-  const int w = env->width, h = env->height;
-  glm::dvec3 e(0);
-  for (int y = 0; y < h; ++y) {
-    const double lat = kPi * (0.5 - (y + 0.5) / h);
-    if (lat <= 0) continue;
-    const double d_omega = (2 * kPi / w) * (kPi / h) * std::cos(lat);
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) e[c] += env->at(x, y)[c] * std::sin(lat) * d_omega;
-  }
-  const glm::dvec3 radiance = albedo * e / kPi;
-  for (int y = h / 2; y < h; ++y) {
-    const double below = kPi * ((y + 0.5) / h - 0.5);
-    if (below < keep_below_horizon) continue;
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) env->at(x, y)[c] = static_cast<float>(radiance[c]);
-  }
-}
-
-// How far under the horizon the car's rays pass beyond Cycles' catcher: from the model's
-// mid-height, at the mean distance from the centre of a square of half-size s to its edge,
-// s (4/π) ln(1 + √2). A bright wall just under the horizon (studio.exr: mean radiance 2.9 within
-// 5° under it, the stand-in 0.80) lit the car's sides in Cycles; replaced, studio_diffuse read 3.8 %
-// dark (docs/notes/render_accuracy.md).
-double KeepBelowHorizon(double mid_height) {
-  const double mean_distance = render::RenderOptions{}.ground_half_size * (4 / kPi) * std::log(1 + std::sqrt(2.0));
-  return std::atan2(std::max(mid_height, 0.0), mean_distance);
-}
-
-double KeepBelowHorizon(const nlohmann::json& j) {
+// KeepBelowHorizon at the mid-height of a references.json's model box.
+double KeepBelowHorizonOfBox(const nlohmann::json& j) {
   const auto& box = j.at("model_box_odvr");
   return KeepBelowHorizon(0.5 * (box.at(0).at(1).get<double>() + box.at(1).at(1).get<double>()));
 }
@@ -124,7 +69,7 @@ std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& 
   }
   std::vector<Reference> refs;
   try {
-    const double keep_below_horizon = ground_bounce ? KeepBelowHorizon(j) : 0.0;
+    const double keep_below_horizon = ground_bounce ? KeepBelowHorizonOfBox(j) : 0.0;
     for (const auto& im : j.at("images")) {
       Reference r;
       r.name = im.at("name").get<std::string>();
@@ -149,11 +94,7 @@ std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& 
       const sphere::EquirectImage mask = image::LoadImage(dir / im.at("files").at("mask").get<std::string>());
       r.mask.resize(static_cast<std::size_t>(mask.width) * mask.height);
       for (std::size_t i = 0; i < r.mask.size(); ++i) r.mask[i] = mask.rgb[3 * i];
-      const auto& cam = im.at("camera");
-      const auto& in = cam.at("intrinsics_opencv");
-      r.camera = render::PinholeCamera::LookAt(Vec3(cam.at("position")), Vec3(cam.at("target")),
-                                               cam.at("vfov_deg").get<double>(), in.at("width").get<int>(),
-                                               in.at("height").get<int>(), Vec3(cam.at("up")));
+      r.camera = CameraFromJson(im.at("camera"));
       const auto& mp = im.at("material_params");
       const auto base = Vec3(mp.at("base_color"));
       render::MaterialOverride paint;
@@ -234,162 +175,6 @@ Reference LoadStreetFrame10(const fs::path& street, bool ground_bounce) {
   return r;
 }
 
-// The errors of one render against its reference (car pixels: covered fully in Cycles and in ours).
-void Score(const Reference& ref, const render::RenderResult& r, Row* row) {
-  const int w = ref.rgb.width, h = ref.rgb.height;
-  const std::size_t n = static_cast<std::size_t>(w) * h;
-  std::vector<float> car(n, 0.f), ya(n), yb(n);
-  double mean_ref = 0;
-  int count = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    car[i] = ref.mask[i] > 0.99f && r.car_alpha[i] > 0.5f ? 1.f : 0.f;
-    ya[i] = static_cast<float>(Luma(&r.car.rgb[3 * i]) * r.car_alpha[i]);
-    yb[i] = static_cast<float>(Luma(&ref.rgb.rgb[3 * i]));
-    if (car[i] > 0) {
-      mean_ref += yb[i];
-      ++count;
-    }
-  }
-  row->car_pixels = count;
-  if (count == 0) return;
-  mean_ref /= count;
-  double sum_rel = 0, sum_abs = 0, sum_ref = 0, sum_ours = 0;
-  std::vector<float> ref_car;
-  for (std::size_t i = 0; i < n; ++i)
-    if (car[i] > 0) {
-      sum_rel += std::abs(ya[i] - yb[i]) / std::max<double>(yb[i], 0.05 * mean_ref);
-      sum_abs += std::abs(ya[i] - yb[i]);
-      sum_ref += yb[i];
-      sum_ours += ya[i];
-      ref_car.push_back(yb[i]);
-    }
-  row->mean_rel = sum_rel / count;
-  row->rel_l1 = sum_abs / sum_ref;
-  row->bias = sum_ours / sum_ref;
-  // SSIM on the luminance scaled so that Cycles' 99th percentile on the car is 1.
-  std::nth_element(ref_car.begin(), ref_car.begin() + static_cast<long>(ref_car.size() * 99 / 100), ref_car.end());
-  const double scale = 1.0 / std::max(1e-12, static_cast<double>(ref_car[ref_car.size() * 99 / 100]));
-  for (std::size_t i = 0; i < n; ++i) {
-    ya[i] = static_cast<float>(ya[i] * scale);
-    yb[i] = static_cast<float>(yb[i] * scale);
-  }
-  row->ssim = image::MeanSsim(ya, yb, w, h, car, 1.0);
-  if (ref.shadow.empty()) return;
-  double shadow_abs = 0;
-  int shadow = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double sr = Luma(&ref.shadow.rgb[3 * i]);
-    if (!(sr < 0.95) || ref.mask[i] > 0.01f || r.car_alpha[i] > 0.f || r.ground_mask[i] < 0.5f) continue;
-    shadow_abs += std::abs(Luma(&r.shadow.rgb[3 * i]) - sr);
-    ++shadow;
-  }
-  row->shadow_pixels = shadow;
-  row->shadow_mae = shadow > 0 ? shadow_abs / shadow : -1;
-}
-
-std::string LobeName(const material::LobeOptions& l) {
-  return std::string(l.warp == material::WarpMode::kIsotropic ? "iso" : "split") + "-" +
-         (l.cosine == material::CosineTerm::kAtLobeAxis ? "axis" : "sg");
-}
-
-// `base`: what every row starts from (RenderOptions' defaults but for the list options).
-Row RenderRow(const render::RenderOptions& base, const Reference& ref, const std::string& method, int levels, int cones,
-              int voxels, int samples, const material::LobeOptions& lobes, int width = 0, int height = 0,
-              unsigned seed = 1, const std::string& images_dir = "", int supersample = 1, double contrast = 0) {
-  render::RenderOptions o = base;
-  o.supersample = supersample;
-  o.supersample_contrast = contrast;
-  // The Monte-Carlo baseline and the supersampled rows shade every pixel; the half-rate rows
-  // judge their blocks at the renderer's contrast (0 would shade every pixel).
-  if (method != "sg" || supersample > 1) o.shading_rate = 1;
-  if (o.shading_rate == 2) o.supersample_contrast = base.supersample_contrast;
-  o.lighting_levels = levels;
-  o.cone_rings = ConeRingsForCount(cones);
-  o.voxel_resolution = voxels;
-  o.materials = ref.materials;
-  o.lobes = lobes;
-  o.monte_carlo_samples = samples / (supersample * supersample);
-  o.monte_carlo_seed = seed;
-  o.monte_carlo_exact_visibility = method == "mc-exact";
-  lighting::LightingOptions lo;
-  lo.transform.levels = levels;
-  lighting::LightingBuilder builder(lo);
-  const lighting::SgLighting model = builder.Build(ref.env);
-  render::TripleProductRenderer renderer(scene::LoadGltfScene(ref.model), ref.world_from_model, o);
-  renderer.SetLighting(model, ref.world_from_env);
-  renderer.SetEnvironment(ref.env);
-  render::PinholeCamera camera = ref.camera;
-  const bool scored = width == 0;
-  if (!scored) {
-    camera.width = width;
-    camera.height = height;
-  }
-  {
-    // A shader variant is compiled at its first dispatch (llvmpipe: seconds, ~8 s for 19 cones),
-    // which a row that is the first of its variant would time: a small untimed render first.
-    // llvmpipe keys its variants on whether each bound texture's sides are powers of two too, so
-    // the small render keeps the timed size's kind: the former 32×18 compiled a variant the
-    // 320×180 rows never used, and with Mesa's shader cache empty every first row of a variant
-    // timed its compile (sky_diffuse, 7 cones: 3975 ms against 141 ms with the cache warm).
-    const auto small_side_like = [](int n) { return n <= 33 ? n : (n & (n - 1)) == 0 ? 32 : 33; };
-    render::PinholeCamera warm = camera;
-    warm.width = small_side_like(camera.width);
-    warm.height = small_side_like(camera.height);
-    renderer.Render(warm);
-    renderer.PrepareShading(camera);  // GPU: the timed size may shade with other lanes than the small one
-  }
-  render::RenderResult r = renderer.Render(camera);
-  Row row;
-  row.reference = ref.name;
-  row.method = method;
-  row.lobes = method != "sg" ? "exact" : LobeName(lobes);
-  row.width = camera.width;
-  row.height = camera.height;
-  row.levels = method != "sg" ? 0 : levels;
-  row.cones = method != "sg" ? 0 : cones;
-  row.voxels = voxels;
-  row.samples = samples;
-  row.supersample = supersample;
-  row.contrast = supersample > 1 ? contrast : 0;
-  row.shade_ms = r.ms.shade;
-  row.total_ms = r.ms.total;
-  if (!scored) {
-    // A frame rate: the window player's frame (nothing read back but the counts' sums, the
-    // composite drawn where it was made), median of kFrameRepeats after the first render.
-    constexpr int kFrameRepeats = 5;
-    o.read_layers = false;
-    o.read_composite = false;
-    render::TripleProductRenderer frames(scene::LoadGltfScene(ref.model), ref.world_from_model, o);
-    frames.SetLighting(model, ref.world_from_env);
-    frames.SetEnvironment(ref.env);
-    frames.Render(camera);
-    std::vector<double> shade, total;
-    for (int i = 0; i < kFrameRepeats; ++i) {
-      const render::RenderResult f = frames.Render(camera);
-      shade.push_back(f.ms.shade);
-      total.push_back(f.ms.total);
-    }
-    row.frame_shade_ms = Median(shade);
-    row.frame_total_ms = Median(total);
-  }
-  if (scored) Score(ref, r, &row);
-  if (scored && !images_dir.empty()) {
-    // For looking at where a row's error lies: the car layer beside the reference's.
-    fs::create_directories(images_dir);
-    const std::string name =
-        ref.name + "_" + method +
-        (method == "sg" ? "_l" + std::to_string(levels) + "_c" + std::to_string(cones) + "_" + row.lobes
-                        : "_s" + std::to_string(samples)) +
-        "_v" + std::to_string(voxels) +
-        (supersample > 1 ? "_ss" + std::to_string(supersample) + (contrast > 0 ? fmt::format("_c{}", contrast) : "")
-                         : "") +
-        ".exr";
-    image::SaveImage(fs::path(images_dir) / name, r.car);
-    image::SaveImage(fs::path(images_dir) / (name.substr(0, name.size() - 4) + "_shadow.exr"), r.shadow);
-  }
-  return row;
-}
-
 const char* kHeader =
     "reference\tmethod\tlobes\twidth\theight\tlevels\tcones\tvoxels\tsamples\tmean_rel\trel_l1\tbias\tssim\t"
     "shadow_mae\tshadow_px\tcar_px\tshade_ms\ttotal_ms\tsupersample\tsupersample_contrast\tframe_shade_ms\t"
@@ -453,9 +238,6 @@ bool IsDefault(const Row& r, const std::string& lobes, int supersample = 1, doub
          r.voxels == kDefaultVoxels && r.car_pixels > 0 && r.supersample == supersample &&
          (supersample == 1 || r.contrast == contrast);
 }
-
-// The lobe mode the defaults use (RenderOptions{}.lobes), as the rows name it.
-std::string DefaultLobes() { return LobeName(render::RenderOptions{}.lobes); }
 
 // The sweep's finest configuration for a reference: the most levels, cones and voxels its 1×1
 // rows (default lobes) were rendered with, each the largest of its axis — what the renderer gives
@@ -884,7 +666,19 @@ CommandFn AddBenchRender(CLI::App* sub) {
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go (docs/benchmarks: the committed pages)")
       ->capture_default_str();
   sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
-  return [o] { return RunBenchRender(*o); };
+  auto set = std::make_shared<BenchRenderSetOptions>();
+  sub->add_option("--set", set->set_dir,
+                  "Instead of the sweep: the default configuration over a generalization set (render_reference.py "
+                  "--generalization-set's folder), as distributions by map, model, material, ground and region");
+  sub->add_option("--envs", set->envs_dir, "The set's maps (default ../shared/data/env)");
+  return [o, set] {
+    if (set->set_dir.empty()) return RunBenchRender(*o);
+    set->ground_bounce = o->ground_bounce;
+    set->switches = o->switches;
+    set->out_dir = o->out_dir;
+    set->images_dir = o->images_dir;
+    return RunBenchRenderSet(*set);
+  };
 }
 
 }  // namespace odvr::app

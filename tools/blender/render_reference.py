@@ -1,6 +1,6 @@
 """Cycles reference renders of a glTF model on a shadow catcher, lit only by an equirect map.
 
-The ground truth for odvr's renderer (issue 4, "Reference and accuracy"). Run headless with
+The ground truth for odvr's renderer. Run headless with
 Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
 
   one image:
@@ -11,7 +11,7 @@ Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
   the committed set (media/reference/, see media/README.md):
     blender -b --factory-startup --python tools/blender/render_reference.py -- --reference-set media/reference
 
-  the generalization set (issue 42), one model per run, resumable (a finished image is skipped):
+  the generalization set, one model per run, resumable (a finished image is skipped):
     for car in media/demo/car.glb ../shared/data/gltf/kenney/police/police.glb ../shared/data/gltf/ToyCar.glb; do
       blender -b --factory-startup --python tools/blender/render_reference.py -- \
           --generalization-set /tmp/gen --model "$car"
@@ -99,7 +99,7 @@ def parse_args():
     p.add_argument("--env-rotation", help="world_from_env 3x3, 9 comma-separated numbers, row-major (odvr frame)")
     p.add_argument("--env-strength", type=float, default=1.0)
     p.add_argument("--camera", default="5.2,1.9,4.4,0,0.55,0,30", help="px,py,pz,tx,ty,tz,vfov_deg (odvr frame)")
-    p.add_argument("--size", default="320x180")
+    p.add_argument("--size", default="320x180", help="WxH (also the generalization set's)")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel per seed (default 256; the set's own)")
     p.add_argument("--seeds", default="1", help="comma-separated render seeds; files hold their mean")
     p.add_argument("--material", default="as-is", choices=["as-is", "diffuse", "glossy"])
@@ -668,18 +668,24 @@ def default_camera(box_odvr, vfov_deg=40.0):
 
 
 GENERALIZATION = {"size": (320, 180), "spp": 256, "seeds": [1, 2], "materials": ["as-is", "glossy", "diffuse"],
-                  "grounds": ["catcher", "none"]}
+                  "grounds": ["catcher", "none"], "catcher_albedo": 0.18}
 
 
-def generalization_set(out_root, model, envs_dir, threads, spp=None):
+def generalization_set(out_root, model, envs_dir, threads, spp=None, size=None):
     """One model under every map, material and ground; DIR/<model>/set.json lists what is done.
     An image whose JSON exists is kept, so an interrupted run goes on where it stopped."""
-    g = dict(GENERALIZATION, spp=spp or GENERALIZATION["spp"])
+    g = dict(GENERALIZATION, spp=spp or GENERALIZATION["spp"], size=tuple(size or GENERALIZATION["size"]))
     model_name = os.path.splitext(os.path.basename(model))[0]
     out_dir = os.path.join(out_root, model_name)
+    # A model inside the repository is named relative to it, so that a committed set is found
+    # from any clone; another keeps its absolute path.
+    repo = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
+    model_ref = os.path.abspath(model)
+    if os.path.commonpath([model_ref, repo]) == repo:
+        model_ref = os.path.relpath(model_ref, repo)
     os.makedirs(out_dir, exist_ok=True)
     envs = sorted(f for f in os.listdir(envs_dir) if f.endswith((".exr", ".hdr")))
-    r = Renderer(model, threads, 60.0, 0.18, DEFAULT_PAINT)
+    r = Renderer(model, threads, 60.0, g["catcher_albedo"], DEFAULT_PAINT)
     camera = default_camera(r.box)
     R = world_from_env_odvr(0.0)
     entries, t0 = [], time.time()
@@ -694,14 +700,16 @@ def generalization_set(out_root, model, envs_dir, threads, spp=None):
                     continue
                 info = r.render(prefix, os.path.join(envs_dir, env_file), R, 1.0, camera, *g["size"], g["spp"],
                                 g["seeds"], mat, ground)
-                info.update(name=name, env=env_file, model=os.path.abspath(model), model_box_odvr=r.box)
+                info.update(name=name, env=env_file, model=model_ref, model_box_odvr=r.box)
                 write_json(prefix + ".json", info)
                 entries.append(info)
                 print(f"{model_name}/{name}: {sum(info['render_seconds']):.1f} s, noise "
                       f"{info.get('noise', {}).get('mean_of_seeds_car_mean_rel', float('nan')):.4f}", flush=True)
     write_json(os.path.join(out_dir, "set.json"),
-               {"what": "Cycles references of one model under every map, material and ground (issue 42)",
-                "model": os.path.abspath(model), "model_box_odvr": r.box, "camera": camera, "settings": g,
+               {"what": "Cycles references of one model under every map, material and ground",
+                "model": model_ref, "model_box_odvr": r.box, "camera": camera, "settings": g,
+                "catcher": {"plane": "y = 0, 60 x 60 m centred at the origin, Cycles shadow catcher",
+                            "albedo_seen_by_the_car": g["catcher_albedo"]},
                 "seconds_this_run": round(time.time() - t0, 1), "images": [e["name"] for e in entries]})
 
 
@@ -720,7 +728,7 @@ def main():
             sys.exit(2)
         repo = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
         envs_dir = a.envs_dir or os.path.normpath(os.path.join(repo, "..", "shared", "data", "env"))
-        generalization_set(a.generalization_set, a.model, envs_dir, a.threads, a.spp)
+        generalization_set(a.generalization_set, a.model, envs_dir, a.threads, a.spp, (a.w, a.h))
         return
     if not (a.model and a.env and a.out):
         print("render_reference.py: --model, --env and --out are needed (or --reference-set / --verify-env)")

@@ -1,0 +1,112 @@
+// `odvr bench render --set` as a user runs it on the committed generalization set
+// (media/reference_set: the demo car under park and hall × its own paint, a glossy and a diffuse
+// one × the catcher or none, 96×54): every image is scored, the page's distributions are the
+// rows' (recomputed here from the TSV), and a malformed set is refused naming the file.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/statistics.h"
+#include "tests/app/run_odvr.h"
+
+namespace {
+
+using odvr::testing::CliRun;
+using odvr::testing::ReadText;
+using odvr::testing::RunOdvr;
+using odvr::testing::ScratchDir;
+
+namespace fs = std::filesystem;
+
+const fs::path kSet = fs::path(ODVR_SOURCE_DIR) / "media/reference_set";
+
+std::vector<std::vector<std::string>> TsvRows(const fs::path& tsv) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream text(ReadText(tsv));
+  for (std::string line; std::getline(text, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> v;
+    std::istringstream cells(line);
+    for (std::string c; std::getline(cells, c, '\t');) v.push_back(c);
+    rows.push_back(std::move(v));
+  }
+  return rows;
+}
+
+TEST(BenchRenderSetGL, ScoresEveryImageAndReportsTheRowsDistributions) {
+  for (const char* map : {"park.exr", "hall.exr"})
+    if (!fs::exists(fs::path(ODVR_SHARED_DIR) / "data/env" / map))
+      GTEST_SKIP() << "the shared environment maps are absent";
+  ScratchDir d("bench_render_set");
+  const CliRun r = RunOdvr("bench render --set " + kSet.string() + " --out " + d.dir.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("12 images"), std::string::npos) << r.out;
+
+  const auto rows = TsvRows(d.dir / "render_set.tsv");
+  ASSERT_EQ(rows.size(), 12u);
+  std::vector<double> err, bias;
+  std::map<std::string, int> per_material, per_ground;
+  for (const auto& v : rows) {
+    ASSERT_EQ(v.size(), 17u);
+    const double mean_rel = std::stod(v[4]), b = std::stod(v[6]), upper = std::stod(v[7]), lower = std::stod(v[9]);
+    for (double x : {mean_rel, b, upper, lower}) ASSERT_TRUE(std::isfinite(x)) << v[0] << " " << v[1];
+    // A render of the right car under the right light: its brightness within a factor of 1.5 of
+    // Cycles', each region scored.
+    EXPECT_GT(mean_rel, 0) << v[1] << " " << v[2] << " " << v[3];
+    EXPECT_LT(mean_rel, 0.5) << v[1] << " " << v[2] << " " << v[3];
+    EXPECT_GT(b, 1 / 1.5) << v[1] << " " << v[2] << " " << v[3];
+    EXPECT_LT(b, 1.5) << v[1] << " " << v[2] << " " << v[3];
+    EXPECT_GT(upper, 0);
+    EXPECT_GT(lower, 0);
+    EXPECT_GT(std::stod(v[16]), 0) << "the reference's noise";
+    err.push_back(mean_rel);
+    bias.push_back(b);
+    ++per_material[v[2]];
+    ++per_ground[v[3]];
+  }
+  EXPECT_EQ(per_material, (std::map<std::string, int>{{"as-is", 4}, {"diffuse", 4}, {"glossy", 4}}));
+  EXPECT_EQ(per_ground, (std::map<std::string, int>{{"catcher", 6}, {"none", 6}}));
+
+  const std::string md = ReadText(d.dir / "render_set.md");
+  const auto f3 = [](double x) {
+    char s[32];
+    std::snprintf(s, sizeof s, "%.3f", x);
+    return std::string(s);
+  };
+  EXPECT_NE(md.find("| all | 12 | " + f3(odvr::Median(err)) + " | " + f3(odvr::Quantile(err, 0.9)) + " | " +
+                    f3(odvr::Median(bias)) + " |"),
+            std::string::npos)
+      << md;
+  for (const char* group : {"| as-is | 4 |", "| glossy | 4 |", "| catcher | 6 |", "| none | 6 |", "| car | 12 |",
+                            "| park | 6 |", "| hall | 6 |"})
+    EXPECT_NE(md.find(group), std::string::npos) << group << "\n" << md;
+  EXPECT_NE(md.find("Median car-pixel error ≤ 0.08: **"), std::string::npos) << md;
+}
+
+TEST(BenchRenderSet, AMalformedSetIsRefusedNamingTheFile) {
+  ScratchDir d("bench_render_set_bad");
+  const CliRun empty = RunOdvr("bench render --set " + d.dir.string() + " --out " + (d.dir / "out").string());
+  EXPECT_NE(empty.exit_code, 0);
+  EXPECT_NE(empty.err.find("holds no model folder with a set.json"), std::string::npos) << empty.err;
+
+  fs::create_directories(d.dir / "car");
+  std::ofstream(d.dir / "car/set.json") << "{\"model\": \"media/demo/car.glb\", \"images\": [";
+  const CliRun bad = RunOdvr("bench render --set " + d.dir.string() + " --out " + (d.dir / "out").string());
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find((d.dir / "car/set.json").string() + ": is not JSON"), std::string::npos) << bad.err;
+
+  std::ofstream(d.dir / "car/set.json") << "{\"model\": \"media/demo/car.glb\", \"images\": [\"x\"]}";
+  const CliRun missing = RunOdvr("bench render --set " + d.dir.string() + " --out " + (d.dir / "out").string());
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.err.find("a field is missing or malformed"), std::string::npos) << missing.err;
+  EXPECT_FALSE(fs::exists(d.dir / "out/render_set.md"));
+}
+
+}  // namespace
