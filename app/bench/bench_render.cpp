@@ -45,6 +45,7 @@ using render_rows::kDefaultCones;
 using render_rows::kDefaultLevels;
 using render_rows::kDefaultVoxels;
 using render_rows::KeepBelowHorizon;
+using render_rows::ReadJsonFile;
 using render_rows::Reference;
 using render_rows::RenderRow;
 using render_rows::ReplaceLowerHemisphereByGround;
@@ -59,14 +60,7 @@ double KeepBelowHorizonOfBox(const nlohmann::json& j) {
 
 std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& repo, bool ground_bounce) {
   const fs::path json_path = dir / "references.json";
-  std::ifstream f(json_path);
-  if (!f) throw Error(json_path.string(), "cannot be read");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(f);
-  } catch (const std::exception& e) {
-    throw Error(json_path.string(), std::string("is not JSON: ") + e.what());
-  }
+  const nlohmann::json j = ReadJsonFile(json_path);
   std::vector<Reference> refs;
   try {
     const double keep_below_horizon = ground_bounce ? KeepBelowHorizonOfBox(j) : 0.0;
@@ -136,9 +130,7 @@ constexpr double kStreetCatcherAlbedo = 0.2;
 Reference LoadStreetFrame10(const fs::path& street, bool ground_bounce) {
   const glm::dmat3 yup_from_zup = sphere::YupFromZup();
   const fs::path pose_path = street / "car_pose.json";
-  std::ifstream f(pose_path);
-  if (!f) throw Error(pose_path.string(), "cannot be read");
-  const auto j = nlohmann::json::parse(f);
+  const nlohmann::json j = ReadJsonFile(pose_path);
   const auto& fr = j.at("frames").at(0);
   if (fr.at("frame").get<int>() != 10) throw Error(pose_path.string(), "frames[0] is not frame 10");
   Reference r;

@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
@@ -35,6 +34,7 @@ using render_rows::kDefaultCones;
 using render_rows::kDefaultLevels;
 using render_rows::kDefaultVoxels;
 using render_rows::KeepBelowHorizon;
+using render_rows::ReadJsonFile;
 using render_rows::Reference;
 using render_rows::RenderRow;
 using render_rows::ReplaceLowerHemisphereByGround;
@@ -55,23 +55,13 @@ struct SetRow {
   Row row;
 };
 
-nlohmann::json ReadJson(const fs::path& path) {
-  std::ifstream f(path);
-  if (!f) throw Error(path.string(), "cannot be read");
-  try {
-    return nlohmann::json::parse(f);
-  } catch (const std::exception& e) {
-    throw Error(path.string(), std::string("is not JSON: ") + e.what());
-  }
-}
-
 // One image's reference from its JSON (render_reference.py's Renderer.render). nullopt when its
 // map is not in `envs_dir` (a clone without ../shared): left out, with a warning.
 std::optional<SetImage> LoadSetImage(const fs::path& dir, const std::string& name, const fs::path& model,
                                      const fs::path& envs_dir, double catcher_albedo, double keep_below_horizon,
                                      bool ground_bounce) {
   const fs::path json_path = dir / (name + ".json");
-  const nlohmann::json im = ReadJson(json_path);
+  const nlohmann::json im = ReadJsonFile(json_path);
   try {
     SetImage s;
     s.model = dir.filename().string();
@@ -136,7 +126,7 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
   std::vector<SetImage> images;
   for (const fs::path& dir : models) {
     const fs::path set_json = dir / "set.json";
-    const nlohmann::json js = ReadJson(set_json);
+    const nlohmann::json js = ReadJsonFile(set_json);
     try {
       // A model inside the repository is named relative to it (render_reference.py).
       fs::path model = js.at("model").get<std::string>();

@@ -5,10 +5,12 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <vector>
 
 #include "app/flags/command_flags.h"
 #include "core/constants.h"
+#include "core/error.h"
 #include "core/statistics.h"
 #include "core/timing.h"
 #include "engine/image/image_io.h"
@@ -22,6 +24,16 @@ double Luma(const float* c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[
 
 glm::dvec3 Vec3(const nlohmann::json& j) {
   return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()};
+}
+
+nlohmann::json ReadJsonFile(const std::filesystem::path& path) {
+  std::ifstream f(path);
+  if (!f) throw Error(path.string(), "cannot be read");
+  try {
+    return nlohmann::json::parse(f);
+  } catch (const std::exception& e) {
+    throw Error(path.string(), std::string("is not JSON: ") + e.what());
+  }
 }
 
 render::PinholeCamera CameraFromJson(const nlohmann::json& cam) {

@@ -46,6 +46,8 @@ struct Reference {
 };
 
 double Luma(const float* c);
+// A reference's JSON file; throws odvr::Error naming it when it cannot be read or is not JSON.
+nlohmann::json ReadJsonFile(const std::filesystem::path& path);
 glm::dvec3 Vec3(const nlohmann::json& j);
 // A reference's camera from its JSON (render_reference.py's "camera": position, target, up,
 // vfov_deg, intrinsics_opencv width and height).
