@@ -62,6 +62,10 @@ def parse_args():
     p.add_argument("--resume", action="store_true",
                    help="keep OUT/_work and skip the frames already rendered there (an interrupted render "
                         "goes on where it stopped; the scene is rebuilt identically from --seed)")
+    p.add_argument("--frame-range", default="",
+                   help="START:END: render only frames START..END-1 into OUT/_work and stop (no video, no checks), "
+                        "so that several processes share one render; copy their _work/pano_render and "
+                        "frames_done.json entries into one OUT and finish there with --resume")
     p.add_argument("--diffuse-bounces", type=int, default=0,
                    help="indirect diffuse bounces (0: shadows lit by the sky only; each bounce ~doubles the time)")
     p.add_argument("--hdr-frames", default="", help="comma-separated frames with an EXR (default: 3 spread)")
@@ -1902,15 +1906,23 @@ def main():
         with open(done_path) as fh:
             done = {int(k): v for k, v in json.load(fh).items()}
         print(f"resuming: {len(done)} of {len(frames)} frames already rendered", flush=True)
+    only = range(len(frames))
+    if args.frame_range:
+        start, end = (int(v) for v in args.frame_range.split(":"))
+        only = range(max(start, 0), min(end, len(frames)))
     timings = []
     for f in frames:
         i = f["index"]
-        if i not in done:
+        if i not in done and i in only:
             done[i] = render_frame(scene, args, rig, cams, pano, f, out, tmpdir, v_dir)
             write_json(done_path, {str(k): v for k, v in sorted(done.items())})
             t = done[i]
             print(f"frame {i}: rig {t['rig_s']:.1f} s, pano {t['pano_s']:.1f} s", flush=True)
-        timings.append(done[i])
+        if i in done:
+            timings.append(done[i])
+    if args.frame_range:
+        print(f"frames {only.start}..{only.stop - 1} rendered into {tmpdir}", flush=True)
+        return
 
     video = None
     if not args.no_video:
