@@ -629,11 +629,15 @@ CommandFn AddBenchRender(CLI::App* sub) {
   auto o = std::make_shared<BenchRenderOptions>();
   sub->add_option("--references", o->reference_dir, "Directory with references.json (relative: to the repository)");
   sub->add_option("--street", o->street_dir, "street_a dataset for its frame-10 reference (default ../shared/data)");
-  sub->add_option("--only", o->only, "Run only these references (by name)")->delimiter(',');
+  sub->add_option("--only", o->only, "Run only these references (by name; with --set: images whose name contains one)")
+      ->delimiter(',');
   sub->add_option("--levels", o->levels, "Lighting levels to sweep")->delimiter(',');
   sub->add_option("--cones", o->cones, "Cone counts to sweep (1, 7, 19, 37)")->delimiter(',');
   sub->add_option("--voxels", o->voxels, "Voxel resolutions to sweep")->delimiter(',');
-  sub->add_option("--mc-samples", o->mc_samples, "Monte-Carlo samples per pixel, one row each")->delimiter(',');
+  CLI::Option* mc_samples =
+      sub->add_option("--mc-samples", o->mc_samples,
+                      "Monte-Carlo samples per pixel, one row each (with --set: the largest, on every image)")
+          ->delimiter(',');
   sub->add_option("--mc-voxels", o->mc_voxels, "Voxel resolutions of the Monte-Carlo rows (one row each)")
       ->delimiter(',');
   sub->add_option("--mc-seed", o->mc_seed, "Seed of the Monte-Carlo rows");
@@ -663,8 +667,12 @@ CommandFn AddBenchRender(CLI::App* sub) {
                   "Instead of the sweep: the default configuration over a generalization set (render_reference.py "
                   "--generalization-set's folder), as distributions by map, model, material, ground and region");
   sub->add_option("--envs", set->envs_dir, "The set's maps (default ../shared/data/env)");
-  return [o, set] {
+  return [o, set, mc_samples] {
     if (set->set_dir.empty()) return RunBenchRender(*o);
+    set->only = o->only;
+    if (mc_samples->count() > 0) set->mc_samples = *std::max_element(o->mc_samples.begin(), o->mc_samples.end());
+    set->mc_exact = o->mc_exact;
+    set->mc_seed = o->mc_seed;
     set->ground_bounce = o->ground_bounce;
     set->switches = o->switches;
     set->out_dir = o->out_dir;

@@ -48,12 +48,18 @@ struct SetImage {
   double ref_noise = 0;  // the reference's own: render_reference.py's mean_of_seeds_car_mean_rel
 };
 
-// A scored image: what it varies and its row.
+// A scored image: what it varies, its row and, when asked, the Monte-Carlo baseline's.
 struct SetRow {
   std::string model, map, material, ground;
   double ref_noise = 0;
   Row row;
+  std::optional<Row> mc;
 };
+
+// Which of a SetRow's rows a table reads.
+using RowOf = const Row& (*)(const SetRow&);
+const Row& SgRow(const SetRow& r) { return r.row; }
+const Row& McRow(const SetRow& r) { return *r.mc; }
 
 // One image's reference from its JSON (render_reference.py's Renderer.render). nullopt when its
 // map is not in `envs_dir` (a clone without ../shared): left out, with a warning.
@@ -116,7 +122,13 @@ std::optional<SetImage> LoadSetImage(const fs::path& dir, const std::string& nam
 }
 
 // Every model folder of the set (one with a set.json), in name order.
-std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir, bool ground_bounce) {
+std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir, bool ground_bounce,
+                              const std::vector<std::string>& only) {
+  // BenchRenderSetOptions::only, before anything is read: a map is loaded per image.
+  const auto wanted = [&](const std::string& name) {
+    return only.empty() || std::any_of(only.begin(), only.end(),
+                                       [&](const std::string& part) { return name.find(part) != std::string::npos; });
+  };
   if (!fs::is_directory(set_dir)) throw Error(set_dir.string(), "is not a directory");
   std::vector<fs::path> models;
   for (const auto& entry : fs::directory_iterator(set_dir))
@@ -135,9 +147,12 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
       const double albedo = js.at("catcher").at("albedo_seen_by_the_car").get<double>();
       const auto& box = js.at("model_box_odvr");
       const double keep = KeepBelowHorizon(0.5 * (box.at(0).at(1).get<double>() + box.at(1).at(1).get<double>()));
-      for (const auto& name : js.at("images"))
-        if (auto image = LoadSetImage(dir, name.get<std::string>(), model, envs_dir, albedo, keep, ground_bounce))
+      for (const auto& entry : js.at("images")) {
+        const std::string name = entry.get<std::string>();
+        if (!wanted(dir.filename().string() + "/" + name)) continue;
+        if (auto image = LoadSetImage(dir, name, model, envs_dir, albedo, keep, ground_bounce))
           images.push_back(std::move(*image));
+      }
     } catch (const nlohmann::json::exception& e) {
       throw Error(set_json.string(), std::string("a field is missing or malformed: ") + e.what());
     }
@@ -149,15 +164,16 @@ std::string F(double v, int digits = 3) { return fmt::format("{:.{}f}", v, digit
 
 // One line of a distribution table: the rows' count, the car's error (median, 90th percentile),
 // its bias (median, and the 10th–90th percentile range), and the two regions' median errors.
-std::string DistributionLine(const std::string& label, const std::vector<const SetRow*>& rows) {
+std::string DistributionLine(const std::string& label, const std::vector<const SetRow*>& rows, RowOf row_of) {
   std::vector<double> err, bias, upper, lower, ms, noise;
   for (const SetRow* r : rows) {
+    const Row& row = row_of(*r);
     noise.push_back(r->ref_noise);
-    err.push_back(r->row.mean_rel);
-    bias.push_back(r->row.bias);
-    upper.push_back(r->row.upper_mean_rel);
-    lower.push_back(r->row.lower_mean_rel);
-    ms.push_back(r->row.shade_ms);
+    err.push_back(row.mean_rel);
+    bias.push_back(row.bias);
+    upper.push_back(row.upper_mean_rel);
+    lower.push_back(row.lower_mean_rel);
+    ms.push_back(row.shade_ms);
   }
   return fmt::format("| {} | {} | {} | {} | {} | {}–{} | {} | {} | {} | {} |\n", label, rows.size(), F(Median(err)),
                      F(Quantile(err, 0.9)), F(Median(bias)), F(Quantile(bias, 0.1)), F(Quantile(bias, 0.9)),
@@ -166,14 +182,14 @@ std::string DistributionLine(const std::string& label, const std::vector<const S
 
 // A table of the rows grouped by `key`, one line per value and one for all.
 std::string GroupTable(const std::string& title, const std::vector<SetRow>& rows,
-                       const std::function<std::string(const SetRow&)>& key) {
+                       const std::function<std::string(const SetRow&)>& key, RowOf row_of = SgRow) {
   std::map<std::string, std::vector<const SetRow*>> groups;
   for (const SetRow& r : rows) groups[key(r)].push_back(&r);
   std::ostringstream md;
   md << "\n### By " << title << "\n\n| " << title
      << " | images | error median | error p90 | bias median | bias p10–p90 | upper half: error | lower quarter: "
         "error | reference noise | shade ms |\n|---|---|---|---|---|---|---|---|---|---|\n";
-  for (const auto& [value, group] : groups) md << DistributionLine(value, group);
+  for (const auto& [value, group] : groups) md << DistributionLine(value, group, row_of);
   return md.str();
 }
 
@@ -204,18 +220,44 @@ std::string SetTargets(const std::vector<SetRow>& rows) {
       bias_by_material.size(), biases);
 }
 
+// The Monte-Carlo baseline on the same images, when it was asked for: its error is the
+// reference's noise plus what the renderer's inputs (the map, the materials, the voxels unless
+// exact) miss, so SG's error above it is the SG model's own; the shade times give SG's speed-up.
+std::string McSection(const std::vector<SetRow>& rows, const BenchRenderSetOptions& o) {
+  if (o.mc_samples <= 0) return "";
+  std::vector<const SetRow*> all;
+  for (const SetRow& r : rows) all.push_back(&r);
+  std::ostringstream md;
+  md << "\n## The Monte-Carlo baseline on the same images\n\n"
+     << o.mc_samples << " samples per pixel, seed " << o.mc_seed << ", visibility "
+     << (o.mc_exact ? "by shadow rays against the triangles" : "through the same voxels as the SG rows")
+     << ", the same lighting map.\n\n| set | images | error median | error p90 | bias median | bias p10–p90 | "
+        "upper half: error | lower quarter: error | reference noise | shade ms |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n"
+     << DistributionLine("all", all, McRow)
+     << GroupTable(
+            "material", rows, [](const SetRow& r) { return r.material; }, McRow)
+     << GroupTable(
+            "model", rows, [](const SetRow& r) { return r.model; }, McRow);
+  return md.str();
+}
+
 void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions& o, const std::string& machine) {
   fs::create_directories(o.out_dir);
   std::ostringstream t;
   t << "# odvr bench render --set on " << machine
     << "\n# model\tmap\tmaterial\tground\tmean_rel\trel_l1\tbias\tupper_mean_rel\tupper_bias\tlower_mean_rel\t"
-       "lower_bias\tssim\tshadow_mae\tcar_pixels\tshade_ms\ttotal_ms\tref_noise\n";
+       "lower_bias\tssim\tshadow_mae\tcar_pixels\tshade_ms\ttotal_ms\tref_noise"
+    << (o.mc_samples > 0 ? "\tmc_mean_rel\tmc_bias\tmc_lower_mean_rel\tmc_shade_ms\n" : "\n");
   for (const SetRow& s : rows) {
     const Row& r = s.row;
     t << s.model << "\t" << s.map << "\t" << s.material << "\t" << s.ground << "\t" << r.mean_rel << "\t" << r.rel_l1
       << "\t" << r.bias << "\t" << r.upper_mean_rel << "\t" << r.upper_bias << "\t" << r.lower_mean_rel << "\t"
       << r.lower_bias << "\t" << r.ssim << "\t" << r.shadow_mae << "\t" << r.car_pixels << "\t" << r.shade_ms << "\t"
-      << r.total_ms << "\t" << s.ref_noise << "\n";
+      << r.total_ms << "\t" << s.ref_noise;
+    if (s.mc)
+      t << "\t" << s.mc->mean_rel << "\t" << s.mc->bias << "\t" << s.mc->lower_mean_rel << "\t" << s.mc->shade_ms;
+    t << "\n";
   }
   WriteTextAtomically(fs::path(o.out_dir) / "render_set.tsv", t.str());
 
@@ -237,10 +279,10 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
         "noise, not the model.\n\n"
      << "| set | images | error median | error p90 | bias median | bias p10–p90 | upper half: error | lower "
         "quarter: error | reference noise | shade ms |\n|---|---|---|---|---|---|---|---|---|---|\n"
-     << DistributionLine("all", all) << GroupTable("material", rows, [](const SetRow& r) { return r.material; })
+     << DistributionLine("all", all, SgRow) << GroupTable("material", rows, [](const SetRow& r) { return r.material; })
      << GroupTable("ground", rows, [](const SetRow& r) { return r.ground; })
      << GroupTable("model", rows, [](const SetRow& r) { return r.model; })
-     << GroupTable("map", rows, [](const SetRow& r) { return r.map; }) << SetTargets(rows)
+     << GroupTable("map", rows, [](const SetRow& r) { return r.map; }) << SetTargets(rows) << McSection(rows, o)
      << "\nEvery image's row is in `render_set.tsv`; `render_set.png` plots the error's cumulative distribution "
         "over the whole car and its two regions.\n\n![error distributions](render_set.png)\n";
   WriteTextAtomically(fs::path(o.out_dir) / "render_set.md", md.str());
@@ -261,8 +303,9 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
 int RunBenchRenderSet(const BenchRenderSetOptions& o) {
   const fs::path envs =
       o.envs_dir.empty() ? fs::path(ODVR_SOURCE_DIR) / ".." / "shared" / "data" / "env" : fs::path(o.envs_dir);
-  const std::vector<SetImage> images = LoadSet(o.set_dir, envs, o.ground_bounce);
-  if (images.empty()) throw UsageError("--set " + o.set_dir, "no image of the set has its map in " + envs.string());
+  const std::vector<SetImage> images = LoadSet(o.set_dir, envs, o.ground_bounce, o.only);
+  if (images.empty())
+    throw UsageError("--set " + o.set_dir, "no image of the set (that --only names) has its map in " + envs.string());
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   for (const std::string& flag : NonDefaultRenderSwitches(o.switches)) machine += "; " + flag;
@@ -270,9 +313,12 @@ int RunBenchRenderSet(const BenchRenderSetOptions& o) {
   std::vector<SetRow> rows;
   BenchProgress progress("bench render --set", static_cast<long>(images.size()));
   for (const SetImage& s : images) {
-    SetRow r{s.model, s.map, s.material, s.ground, s.ref_noise, {}};
+    SetRow r{s.model, s.map, s.material, s.ground, s.ref_noise, {}, std::nullopt};
     r.row = RenderRow(o.switches, s.ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, lobes, 0, 0, 1,
                       o.images_dir);
+    if (o.mc_samples > 0)
+      r.mc = RenderRow(o.switches, s.ref, o.mc_exact ? "mc-exact" : "mc", kDefaultLevels, 1, kDefaultVoxels,
+                       o.mc_samples, lobes, 0, 0, o.mc_seed, o.images_dir);
     if (r.row.car_pixels == 0) {
       spdlog::warn("bench render --set: {} has no car pixel in common with its reference: left out", s.ref.name);
     } else {

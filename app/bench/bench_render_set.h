@@ -4,6 +4,7 @@
 // model, each image a map × material × ground), reported as distributions: the median and 90th
 // percentile of the car's error and bias by map, model, material, ground and silhouette region.
 #include <string>
+#include <vector>
 
 #include "app/bench/bench_common.h"
 #include "engine/render/triple_product_renderer.h"
@@ -16,7 +17,14 @@ struct BenchRenderSetOptions {
   bool ground_bounce = true;       // the catcher images: the maps' lower half = the catcher seen from the car
   render::RenderOptions switches;  // what every render starts from
   std::string out_dir = kBenchOutDir;
-  std::string images_dir;  // non-empty: each image's car layer as EXR there
+  std::string images_dir;         // non-empty: each image's car layer as EXR there
+  std::vector<std::string> only;  // non-empty: only the images whose name (model/image) contains one
+  // > 0: each image also rendered by the Monte-Carlo baseline at this many samples per pixel
+  // (shadow rays against the triangles with mc_exact, else through the voxels), reported beside
+  // the SG rows: what is the model's error and what is the lighting's and visibility's.
+  int mc_samples = 0;
+  bool mc_exact = true;
+  unsigned mc_seed = 1;
 };
 
 // Renders and scores every image of the set; writes render_set.md, .tsv and .png in out_dir.

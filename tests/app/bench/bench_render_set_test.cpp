@@ -90,6 +90,32 @@ TEST(BenchRenderSetGL, ScoresEveryImageAndReportsTheRowsDistributions) {
   EXPECT_NE(md.find("Median car-pixel error ≤ 0.08: **"), std::string::npos) << md;
 }
 
+// --only picks images by name before any is read; --mc-samples adds the Monte-Carlo baseline on
+// the same images: its columns in the TSV and its section on the page.
+TEST(BenchRenderSetGL, OnlyAndTheMonteCarloBaseline) {
+  if (!fs::exists(fs::path(ODVR_SHARED_DIR) / "data/env/hall.exr")) GTEST_SKIP() << "the shared maps are absent";
+  ScratchDir d("bench_render_set_mc");
+  const CliRun r = RunOdvr("bench render --set " + kSet.string() +
+                           " --only hall_diffuse --mc-samples 4 --mc-exact --out " + d.dir.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto rows = TsvRows(d.dir / "render_set.tsv");
+  ASSERT_EQ(rows.size(), 2u) << "hall × diffuse × two grounds";
+  for (const auto& v : rows) {
+    ASSERT_EQ(v.size(), 21u);
+    EXPECT_EQ(v[1], "hall");
+    EXPECT_EQ(v[2], "diffuse");
+    const double mc_err = std::stod(v[17]), mc_bias = std::stod(v[18]);
+    EXPECT_GT(mc_err, 0);
+    EXPECT_LT(mc_err, 1.0) << "4 samples: noisy, not wrong";
+    EXPECT_GT(mc_bias, 1 / 1.5);
+    EXPECT_LT(mc_bias, 1.5);
+  }
+  const std::string md = ReadText(d.dir / "render_set.md");
+  EXPECT_NE(md.find("## The Monte-Carlo baseline on the same images"), std::string::npos) << md;
+  EXPECT_NE(md.find("4 samples per pixel, seed 1, visibility by shadow rays against the triangles"), std::string::npos)
+      << md;
+}
+
 TEST(BenchRenderSet, AMalformedSetIsRefusedNamingTheFile) {
   ScratchDir d("bench_render_set_bad");
   const CliRun empty = RunOdvr("bench render --set " + d.dir.string() + " --out " + (d.dir / "out").string());
