@@ -78,6 +78,7 @@ int RunPlay(PlayCommand& c) {
   if (c.json) {
     nlohmann::json j{{"mode", r.mode},
                      {"augmented", !c.options.trajectory.empty()},
+                     {"video", c.options.video},
                      {"trajectory", c.options.trajectory},
                      {"reconstruction", reconstruction},
                      {"size", {c.options.width, c.options.height}},

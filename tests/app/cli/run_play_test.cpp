@@ -25,6 +25,10 @@ namespace fs = std::filesystem;
 using odvr::testing::RunOdvr;
 const fs::path kDemo = fs::path(ODVR_SOURCE_DIR) / "media" / "demo";
 const std::string kSmall = " --levels 3 --voxels 64 ";
+// The rig's 1 s street with its poses and car: what these tests play, whatever `odvr` plays with
+// no arguments.
+const std::string kDemoDrive = " " + (kDemo / "street.mp4").string() + " --trajectory " +
+                               (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() + " ";
 
 fs::path TempDir(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
@@ -74,7 +78,8 @@ TEST(RunPlayGL, MissingCarModelIsAClearError) {
 // No arguments but --headless: the demo with its car, to PNG frames, saying where.
 TEST(RunPlayGL, HeadlessDemoWithTheCarAndAScriptedDrive) {
   const fs::path dir = TempDir("odvr_play_headless");
-  const auto r = RunOdvr("play --headless --size 96x54 --drive W:0.2s --out " + dir.string() + kSmall + "--json");
+  const auto r =
+      RunOdvr("play --headless --size 96x54 --drive W:0.2s --out " + dir.string() + kSmall + kDemoDrive + "--json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_TRUE(j["augmented"].get<bool>());
@@ -91,7 +96,7 @@ TEST(RunPlayGL, HeadlessDemoWithTheCarAndAScriptedDrive) {
     EXPECT_GE(j["median_ms"][stage].get<double>(), 0) << stage;
   EXPECT_GT(j["median_ms"]["render"].get<double>(), 0);
 
-  const auto plain = RunOdvr("play --headless --size 96x54 --frames 1 --out " + dir.string() + kSmall);
+  const auto plain = RunOdvr("play --headless --size 96x54 --frames 1 --out " + dir.string() + kSmall + kDemoDrive);
   ASSERT_EQ(plain.exit_code, 0) << plain.err;
   EXPECT_NE(plain.out.find("no display: rendered 1 frames to " + dir.string()), std::string::npos) << plain.out;
   fs::remove_all(dir);
@@ -102,7 +107,7 @@ TEST(RunPlayGL, HeadlessDemoWithTheCarAndAScriptedDrive) {
 // to 165 m on a 35 m trajectory, 8 px tall).
 TEST(RunPlayGL, TheDemoPlaysWithNoKeyAndTheCarStaysOnTheStreet) {
   const fs::path dir = TempDir("odvr_play_cruise");
-  const auto r = RunOdvr("play --headless --size 96x54 --out " + dir.string() + kSmall + "--json");
+  const auto r = RunOdvr("play --headless --size 96x54 --out " + dir.string() + kSmall + kDemoDrive + "--json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   const auto& frames = j["frames"];
@@ -120,8 +125,8 @@ TEST(RunPlayGL, TheDemoPlaysWithNoKeyAndTheCarStaysOnTheStreet) {
   EXPECT_TRUE(frames[23]["at_stretch_end"].get<bool>());
 
   // 12 s of full throttle: far past the demo's 8 m of street without the hold.
-  const auto w =
-      RunOdvr("play --headless --size 96x54 --drive W:12s --out " + (dir / "w").string() + kSmall + "--json");
+  const auto w = RunOdvr("play --headless --size 96x54 --drive W:12s --out " + (dir / "w").string() + kSmall +
+                         kDemoDrive + "--json");
   ASSERT_EQ(w.exit_code, 0) << w.err;
   const auto driven_report = nlohmann::json::parse(w.out);
   const auto& driven = driven_report["frames"];
@@ -159,12 +164,16 @@ TEST(RunPlayGL, WindowUnderXvfbShowsTheCar) {
   const std::string shot = (dir / "window.png").string();
   std::string log;
   // A script of no keys: the car stands (without one it would cruise with the video).
-  ASSERT_EQ(RunShell(Xvfb("play --size 480x270 --quit-after 2 --drive -:0.01s --screenshot " + shot + kSmall), &log), 0)
+  ASSERT_EQ(
+      RunShell(Xvfb("play --size 480x270 --quit-after 2 --drive -:0.01s --screenshot " + shot + kSmall + kDemoDrive),
+               &log),
+      0)
       << log;
   const cv::Mat window = cv::imread(shot);
   ASSERT_FALSE(window.empty()) << log;
   ASSERT_EQ(window.cols, 480);
-  const auto h = RunOdvr("play --headless --size 480x270 --frames 1 --json --out " + dir.string() + kSmall);
+  const auto h =
+      RunOdvr("play --headless --size 480x270 --frames 1 --json --out " + dir.string() + kSmall + kDemoDrive);
   ASSERT_EQ(h.exit_code, 0) << h.err;
   const auto j = nlohmann::json::parse(h.out);
   const cv::Mat headless = cv::imread(j["frames"][0]["file"].get<std::string>());
@@ -178,7 +187,8 @@ TEST(RunPlayGL, WindowUnderXvfbShowsTheCar) {
   EXPECT_GT(j["frames"][0]["car_pixels"].get<int>(), 1000);
 
   log.clear();
-  EXPECT_EQ(RunShell(Xvfb("play --size 64x36 --quit-after 2 --resize 1x1 --drive W:1s" + kSmall), &log), 0) << log;
+  EXPECT_EQ(RunShell(Xvfb("play --size 64x36 --quit-after 2 --resize 1x1 --drive W:1s" + kSmall + kDemoDrive), &log), 0)
+      << log;
   fs::remove_all(dir);
 }
 
