@@ -68,6 +68,7 @@ uniform mat3 uWorldFromCamera;  // columns: camera x (right), y (down), z (forwa
 uniform float uFocal;           // pixels
 uniform mat3 uEnvFromWorld;     // the overlap bins live in the lighting's own frame
 uniform vec3 uConstant;
+uniform vec3 uAmbientBounce;  // RenderOptions::ambient_bounce: the lighting's mean radiance L̄; 0: off
 uniform int uPeakCount;
 uniform int uPeakCones;  // 1: each peak its own cone; 0: peaks shadowed by the lobes' cones
 uniform int uBinLevelCount;
@@ -574,6 +575,16 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
     gCount.z += uint(gSet.count);
   }
   gRadiance += weight * shaded;
+  if (cosine && uAmbientBounce != vec3(0.0) && !gSet.all_visible) {
+    // RenderOptions::ambient_bounce: the occluded part of the lobe under a constant light sees
+    // car surfaces that send a v L̄ / (1 − a (1 − v)), a = π · weight, v the visible share.
+    SgProduct q = sgProduct(axis, lambda, vec3(0, 1, 0), 0.0);
+    float v = visibleShare(q, gSet);
+    vec3 a = min(kLobePi * weight, vec3(1.0));
+    vec3 occluder = a * v * uAmbientBounce / max(vec3(1.0) - a * (1.0 - v), vec3(1e-4));
+    gRadiance += weight * occluder * (clampedCosineLobeIntegral(vec3(0, 1, 0), 0.0, q) * (1.0 - v));
+    gCount.z += uint(gSet.count);
+  }
   if (uBounce != 0 && !cosine && tail_share <= 0.0 && !gSet.all_visible) {
     SgProduct q;
     q.axis = axis;

@@ -24,6 +24,11 @@ void AddRenderSwitches(CLI::App* sub, render::RenderOptions* options) {
   AddSetFlag(sub, "--specular-bounce", &options->specular_bounce, true,
              "One bounce of the car's specular light on itself, found along the G-buffer (the default)");
   AddSetFlag(sub, "--no-specular-bounce", &options->specular_bounce, false, "No bounce of the car's light on itself");
+  AddSetFlag(sub, "--ambient-bounce", &options->ambient_bounce, true,
+             "Where the car hides the light from its own diffuse surfaces, they see the car lit like an average "
+             "surface instead of black (the default)");
+  AddSetFlag(sub, "--no-ambient-bounce", &options->ambient_bounce, false,
+             "Diffuse surfaces see black where the car hides the light");
   sub->add_option("--shading-rate", options->shading_rate,
                   "2: shade one pixel of each 2x2 block, every pixel only of blocks that are not smooth (by "
                   "--supersample-contrast), and fill the rest between the shaded pixels")
@@ -43,6 +48,8 @@ std::vector<std::string> NonDefaultRenderSwitches(const render::RenderOptions& o
     out.push_back(o.valid_reflection_normals ? "--valid-reflection-normals" : "--raw-normals");
   if (o.specular_bounce != d.specular_bounce)
     out.push_back(o.specular_bounce ? "--specular-bounce" : "--no-specular-bounce");
+  if (o.ambient_bounce != d.ambient_bounce)
+    out.push_back(o.ambient_bounce ? "--ambient-bounce" : "--no-ambient-bounce");
   if (o.shading_rate != d.shading_rate) out.push_back("--shading-rate " + std::to_string(o.shading_rate));
   return out;
 }
@@ -54,6 +61,7 @@ nlohmann::json RenderSwitchesJson(const render::RenderOptions& o) {
           {"exact_peak_shadows", o.exact_peak_shadows},
           {"valid_reflection_normals", o.valid_reflection_normals},
           {"specular_bounce", o.specular_bounce},
+          {"ambient_bounce", o.ambient_bounce},
           {"shading_rate", o.shading_rate}};
 }
 

@@ -73,6 +73,9 @@ struct PreparedLighting {
   // Apart: the part of the peaks that get cones, which are shadowed by their own cones alone.
   glm::vec3 ground_radiance{0};
   glm::vec3 ground_radiance_traced_peaks{0};
+  // The lighting's mean radiance over the whole sphere, (1/4π) ∫ L: a surface of any orientation,
+  // unshadowed, receives π times it on average (RenderOptions::ambient_bounce).
+  glm::vec3 mean_radiance{0};
   glm::vec3 GroundRadiance(bool peak_cones) const {
     return glm::max(ground_radiance + (peak_cones ? glm::vec3(0) : ground_radiance_traced_peaks), glm::vec3(0));
   }

@@ -377,6 +377,7 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
   counts->assign(static_cast<std::size_t>(w) * h, {});
   const int material_count = static_cast<int>(in.materials->size());
   const bool bounce = in.options.specular_bounce && in.grid;
+  const bool ambient = in.options.ambient_bounce && in.grid;
   pool.ParallelFor(
       static_cast<long>(w) * h,
       [&](long begin, long end) {
@@ -433,6 +434,16 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
               // A clamped-cosine lobe's weight is the whole of it; an SG lobe's amplitude is apart.
               const glm::dvec3 weight = lobe.weight * (cosine ? 1.0 : lobe.sg.amplitude);
               radiance += weight * shaded;
+              if (ambient && cosine && !set.all_visible) {
+                // RenderOptions::ambient_bounce (render_shade.comp's emitLobe): the occluded part
+                // of the lobe sees car surfaces sending a v L̄ / (1 − a (1 − v)), a = π weight.
+                const double v = VisibleShare(unit, set);
+                const glm::dvec3 a = glm::min(kPi * weight, glm::dvec3(1.0));
+                const glm::dvec3 occluder = a * v * glm::dvec3(in.lighting->mean_radiance) /
+                                            glm::max(glm::dvec3(1.0) - a * (1.0 - v), glm::dvec3(1e-4));
+                radiance += weight * occluder * (FullIntegral(lobe, Sg{{0, 1, 0}, 0.0, 1.0}) * (1.0 - v));
+                count.triples += static_cast<unsigned>(set.cones.size());
+              }
               if (bounce && !cosine && lobe.tail_share <= 0 && !set.all_visible) {
                 const glm::dvec3 lost = weight * (lighting::Integral(unit) * (1.0 - VisibleShare(unit, set)));
                 const int t = std::min(lobe_term[li], kBounceTerms - 1);

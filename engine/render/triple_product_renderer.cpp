@@ -123,9 +123,10 @@ detail::PreparedLighting Prepare(const lighting::SgLighting& model, const glm::d
   // horizon (E from below / π), the traced peaks' part apart.
   const glm::dvec3 up(0, 1, 0), down(0, -1, 0);
   double total = 0;
-  glm::dvec3 e_down(0), e_traced(0);
+  glm::dvec3 e_down(0), e_traced(0), sphere_sum(0);
   std::vector<double> peak_e;
   const auto add = [&](const glm::vec3& amplitude, const glm::dvec3& axis, double lambda, bool traced) {
+    sphere_sum += glm::dvec3(amplitude) * lighting::Integral({axis, lambda, 1.0});
     const double e_up = material::ClampedCosineIntegral(up, {axis, lambda, 1.0}) *
                         static_cast<double>(amplitude.x + amplitude.y + amplitude.z);
     total += e_up;
@@ -140,6 +141,7 @@ detail::PreparedLighting Prepare(const lighting::SgLighting& model, const glm::d
   for (double e : peak_e) p.ground_peak_share.push_back(total > 0 ? e / total : 0.0);
   p.ground_radiance = glm::vec3(e_down / kPi);
   p.ground_radiance_traced_peaks = glm::vec3(e_traced / kPi);
+  p.mean_radiance = glm::vec3(glm::max(sphere_sum, glm::dvec3(0)) / (4 * kPi));
   return p;
 }
 

@@ -112,6 +112,15 @@ struct RenderOptions {
   // hit's diffuse lobe is left out. What the camera does not see (a recess's inner walls) reflects
   // nothing.
   bool specular_bounce = true;
+  // The car's diffuse light on itself, every bounce: where a clamped-cosine (diffuse) lobe's cones
+  // meet the car, the occluded part of the lobe sees car surfaces, not black. They are taken to
+  // be like the shaded point: its diffuse albedo a, its visible share v of the sky, under the
+  // lighting's mean radiance L̄ (π L̄ is the mean irradiance over all orientations). Their
+  // radiance L_o then solves L_o = a (v L̄ + (1 − v) L_o): L_o = a v L̄ / (1 − a (1 − v)), so a
+  // white car in a uniform sky (a white furnace) reads L̄ in its recesses too, as it must.
+  // A convex car loses nothing to itself and gains nothing; a concave one's wheel arches, sills,
+  // grilles and bumpers, which Cycles' diffuse bounces light, read dark without it.
+  bool ambient_bounce = true;
   double bounce_step_voxels = 1.0;       // the march's step, in level-0 voxels
   int bounce_steps = 64;                 // and its length in steps
   double bounce_thickness_voxels = 1.5;  // a sample this far behind the G-buffer's surface hits it

@@ -94,6 +94,7 @@ void TripleProductRenderer::Impl::SetShadeUniforms(const Frame& fr, gl::Program&
   const RenderOptions& o = fr.options;
   const PinholeCamera& camera = fr.camera;
   const glm::vec3 ground_radiance = lighting.GroundRadiance(o.peak_cones);
+  const glm::vec3 ambient = o.ambient_bounce && fr.geometry ? lighting.mean_radiance : glm::vec3(0);
   const glm::mat3 wfc(camera.world_from_camera), efw(lighting.env_from_world);
   glProgramUniform2i(sp.id(), sp.Uniform("uSize"), fr.sw, fr.sh);
   sp.Set("uCameraPosition", static_cast<float>(camera.position.x), static_cast<float>(camera.position.y),
@@ -114,6 +115,7 @@ void TripleProductRenderer::Impl::SetShadeUniforms(const Frame& fr, gl::Program&
       .Set("uExactTriangles", o.exact_peak_shadows && fr.geometry ? bvh_triangle_count : 0)
       .Set("uExactRayOffset", detail::kExactRayOffset)
       .Set("uBounce", o.specular_bounce && fr.geometry ? 1 : 0)
+      .Set("uAmbientBounce", ambient.x, ambient.y, ambient.z)
       .Set("uBounceStep", static_cast<float>(o.bounce_step_voxels * spec.voxel_size))
       .Set("uBounceSteps", o.bounce_steps)
       .Set("uBounceThickness", static_cast<float>(o.bounce_thickness_voxels * spec.voxel_size))

@@ -36,6 +36,7 @@ TEST(RenderSwitches, EachFlagReachesItsFieldAndIsNamedBack) {
                                          "--peak-cone-shadows",
                                          "--raw-normals",
                                          "--no-specular-bounce",
+                                         "--no-ambient-bounce",
                                          "--shading-rate",
                                          "2"};
   const render::RenderOptions o = Parse(args);
@@ -47,11 +48,12 @@ TEST(RenderSwitches, EachFlagReachesItsFieldAndIsNamedBack) {
   EXPECT_FALSE(o.exact_peak_shadows);
   EXPECT_FALSE(o.valid_reflection_normals);
   EXPECT_FALSE(o.specular_bounce);
+  EXPECT_FALSE(o.ambient_bounce);
   EXPECT_EQ(o.shading_rate, 2);
   const nlohmann::json j = RenderSwitchesJson(o);
   EXPECT_FALSE(j.at("depth_per_lobe").get<bool>());
   EXPECT_EQ(j.at("shading_rate").get<int>(), 2);
-  EXPECT_EQ(j.size(), 7u);
+  EXPECT_EQ(j.size(), 8u);
   // Named back as flags that parse to the same options: a bench's header says how to rerun it.
   std::vector<std::string> named;
   for (const std::string& flag : NonDefaultRenderSwitches(o)) {
@@ -59,7 +61,7 @@ TEST(RenderSwitches, EachFlagReachesItsFieldAndIsNamedBack) {
     named.push_back(flag.substr(0, space));
     if (space != std::string::npos) named.push_back(flag.substr(space + 1));
   }
-  EXPECT_EQ(NonDefaultRenderSwitches(o).size(), 7u);
+  EXPECT_EQ(NonDefaultRenderSwitches(o).size(), 8u);
   EXPECT_EQ(RenderSwitchesJson(Parse(named)), j);
 }
 

@@ -2,7 +2,8 @@
 // - against the CPU reference on the same G-buffer (96×64), for every lobe mode and lane count;
 // - a furnace: a Lambertian sphere under a constant environment reads albedo × radiance times
 //   the integral of brdf.h's clamped-cosine SG over the sphere (3.395 instead of π, +8.1 %);
-// - reflection normals, the specular bounce, emission;
+// - reflection normals, the specular bounce, the ambient bounce (a white furnace with a recess),
+//   emission;
 // - more lighting levels and more cones move the result towards the converged one.
 #include "engine/render/triple_product_renderer.h"
 
@@ -334,6 +335,53 @@ TEST_F(SgShadeGL, FurnaceLambertianSphereUnderConstantLight) {
     // at 64³ with the surface offset of 2 voxels; 23 % without it) is the cone tracer's error.
     EXPECT_LT(worst, 0.1);
     EXPECT_NEAR(mean, 1.0, 0.02);
+  }
+}
+
+// A white furnace with a recess: an L of a floor slab and a wall, albedo 1, under a constant
+// sky. Light is conserved, so every surface reads the sky's radiance, the inner corner too; the
+// ambient bounce gives back what the cones lose to the car itself, without it the corner is dark.
+TEST_F(SgShadeGL, AmbientBounceKeepsAWhiteFurnaceCornerAtTheSkysRadiance) {
+  scene::GltfScene corner;
+  corner.materials = {Pbr("white", {1.f, 1.f, 1.f}, 0.f, 1.f)};
+  corner.primitives.push_back(BoxPrimitive({-1.0f, 0.5f, -1.0f}, {1.0f, 0.7f, 1.0f}, 0));   // floor slab
+  corner.primitives.push_back(BoxPrimitive({-1.0f, 0.7f, -1.0f}, {1.0f, 2.2f, -0.8f}, 0));  // wall at its back
+  odvr::testing::Finish(&corner);
+  lighting::SgLighting light;
+  light.constant = glm::vec3(2.0f);
+  const PinholeCamera cam = PinholeCamera::LookAt({0, 1.9, 2.4}, {0, 0.8, -0.7}, 40, kW, kH);
+  for (bool bounce : {true, false}) {
+    double means[2] = {0, 0};
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.ground = false;
+    o.ambient_bounce = bounce;
+    o.materials = {MaterialOverride{"", {material::Lambertian{glm::dvec3(1.0)}}}};
+    TripleProductRenderer r(corner, glm::dmat4(1.0), o);
+    r.SetLighting(light);
+    for (ShadeDevice device : {ShadeDevice::kGpu, ShadeDevice::kCpu}) {
+      const RenderResult res = r.Render(cam, device);
+      ASSERT_TRUE(AllFinite(res.car));
+      // Each car pixel's radiance over the sky's: 1 everywhere for a white furnace.
+      std::vector<double> ratio;
+      for (std::size_t i = 0; i < res.car_alpha.size(); ++i)
+        if (res.car_alpha[i] > 0.5f) ratio.push_back(res.car.rgb[3 * i + 1] / 2.0);
+      ASSERT_GT(ratio.size(), 1000u);
+      std::sort(ratio.begin(), ratio.end());
+      double mean = 0;
+      for (double v : ratio) mean += v / static_cast<double>(ratio.size());
+      const double p5 = ratio[ratio.size() / 20];  // the recess: the darkest 5 %
+      std::printf("%s, ambient bounce %s: mean %.4f of L, 5th percentile %.4f, over %zu px\n",
+                  device == ShadeDevice::kGpu ? "GPU" : "CPU", bounce ? "on" : "off", mean, p5, ratio.size());
+      if (bounce) {
+        EXPECT_NEAR(mean, 1.0, 0.01);
+        EXPECT_GT(p5, 0.98) << "the recess reads the sky's radiance";
+      } else {
+        EXPECT_LT(p5, 0.8) << "without the bounce the cones lose the corner's light to the car";
+      }
+      means[device == ShadeDevice::kGpu ? 0 : 1] = mean;
+    }
+    EXPECT_NEAR(means[0], means[1], 2e-3) << "GPU and CPU reference";
   }
 }
 
