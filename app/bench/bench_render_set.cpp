@@ -136,6 +136,7 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
   std::sort(models.begin(), models.end());
   if (models.empty()) throw Error(set_dir.string(), "holds no model folder with a set.json");
   std::vector<SetImage> images;
+  int named = 0;  // images that --only lets through, their maps present or not
   for (const fs::path& dir : models) {
     const fs::path set_json = dir / "set.json";
     const nlohmann::json js = ReadJsonFile(set_json);
@@ -150,6 +151,7 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
       for (const auto& entry : js.at("images")) {
         const std::string name = entry.get<std::string>();
         if (!wanted(dir.filename().string() + "/" + name)) continue;
+        ++named;
         if (auto image = LoadSetImage(dir, name, model, envs_dir, albedo, keep, ground_bounce))
           images.push_back(std::move(*image));
       }
@@ -157,6 +159,7 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
       throw Error(set_json.string(), std::string("a field is missing or malformed: ") + e.what());
     }
   }
+  if (named == 0 && !only.empty()) throw UsageError("--only", "names no image of " + set_dir.string());
   return images;
 }
 
@@ -304,8 +307,7 @@ int RunBenchRenderSet(const BenchRenderSetOptions& o) {
   const fs::path envs =
       o.envs_dir.empty() ? fs::path(ODVR_SOURCE_DIR) / ".." / "shared" / "data" / "env" : fs::path(o.envs_dir);
   const std::vector<SetImage> images = LoadSet(o.set_dir, envs, o.ground_bounce, o.only);
-  if (images.empty())
-    throw UsageError("--set " + o.set_dir, "no image of the set (that --only names) has its map in " + envs.string());
+  if (images.empty()) throw UsageError("--set " + o.set_dir, "no image of the set has its map in " + envs.string());
   gl::HeadlessContext context;
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   for (const std::string& flag : NonDefaultRenderSwitches(o.switches)) machine += "; " + flag;

@@ -23,7 +23,7 @@ struct BenchRenderSetOptions {
   // (shadow rays against the triangles with mc_exact, else through the voxels), reported beside
   // the SG rows: what is the model's error and what is the lighting's and visibility's.
   int mc_samples = 0;
-  bool mc_exact = true;
+  bool mc_exact = false;
   unsigned mc_seed = 1;
 };
 

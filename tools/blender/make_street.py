@@ -87,6 +87,15 @@ def parse_args():
     a.p_w, a.p_h = size(a.pano_size)
     if (a.pr_w, a.pr_h) != (a.p_w, a.p_h) and (a.pr_w, a.pr_h) != (2 * a.p_w, 2 * a.p_h):
         p.error("--pano-size must equal --pano-render-size or be half of it")
+    a.only = range(a.frames)
+    if a.frame_range:
+        try:
+            start, end = (int(v) for v in a.frame_range.split(":"))
+        except ValueError:
+            start, end = 0, 0
+        if not 0 <= start < end <= a.frames:
+            p.error(f"--frame-range {a.frame_range}: expected START:END with 0 <= START < END <= --frames")
+        a.only = range(start, end)
     if a.rig_frames < 0 or a.rig_frames > a.frames:
         a.rig_frames = a.frames
     if a.hdr_frames:
@@ -1906,10 +1915,7 @@ def main():
         with open(done_path) as fh:
             done = {int(k): v for k, v in json.load(fh).items()}
         print(f"resuming: {len(done)} of {len(frames)} frames already rendered", flush=True)
-    only = range(len(frames))
-    if args.frame_range:
-        start, end = (int(v) for v in args.frame_range.split(":"))
-        only = range(max(start, 0), min(end, len(frames)))
+    only = args.only
     timings = []
     for f in frames:
         i = f["index"]

@@ -133,6 +133,11 @@ TEST(BenchRenderSet, AMalformedSetIsRefusedNamingTheFile) {
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.err.find("a field is missing or malformed"), std::string::npos) << missing.err;
   EXPECT_FALSE(fs::exists(d.dir / "out/render_set.md"));
+
+  const CliRun none =
+      RunOdvr("bench render --set " + kSet.string() + " --only no_such_image --out " + (d.dir / "out").string());
+  EXPECT_EQ(none.exit_code, 2) << none.err;
+  EXPECT_NE(none.err.find("--only: names no image of " + kSet.string()), std::string::npos) << none.err;
 }
 
 }  // namespace
