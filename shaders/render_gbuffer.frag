@@ -1,7 +1,8 @@
 #version 450
 // G-buffer of the triple-product renderer: world position and material index + 1 (0 = empty),
 // shading normal (normal map applied when the material has one and the mesh has tangents) and
-// perceptual roughness, linear base colour and metallic.
+// perceptual roughness, linear base colour and metallic, and the radiance the surface emits (glTF:
+// emissive factor × strength × emissive texture).
 in vec3 vPosition;
 in vec3 vNormal;
 in vec2 vUv0;
@@ -11,22 +12,25 @@ in vec4 vTangent;
 layout(location = 0) out vec4 outPosition;
 layout(location = 1) out vec4 outNormal;
 layout(location = 2) out vec4 outBase;
+layout(location = 3) out vec4 outEmission;
 
 layout(binding = 0) uniform sampler2D uBaseColorTex;  // sRGB texture format: sampled linear
 layout(binding = 1) uniform sampler2D uMetalRoughTex;  // G roughness, B metallic
 layout(binding = 2) uniform sampler2D uNormalTex;
+layout(binding = 3) uniform sampler2D uEmissiveTex;  // sRGB texture format: sampled linear
 
 uniform float uMaterialId;  // material index + 1
 uniform vec4 uBaseColorFactor;
 uniform float uMetallicFactor;
 uniform float uRoughnessFactor;
 uniform float uNormalScale;
+uniform vec3 uEmission;  // factor × strength; 0 under a material override
 uniform float uAlphaCutoff;  // < 0: opaque
 uniform vec3 uCameraPosition;
-// Per texture (base, metal-rough, normal): enabled, texcoord set, KHR_texture_transform.
-uniform ivec2 uTexUse[3];     // (enabled, texcoord)
-uniform vec4 uTexOffsetScale[3];  // offset xy, scale zw
-uniform float uTexRotation[3];
+// Per texture (base, metal-rough, normal, emissive): enabled, texcoord set, KHR_texture_transform.
+uniform ivec2 uTexUse[4];     // (enabled, texcoord)
+uniform vec4 uTexOffsetScale[4];  // offset xy, scale zw
+uniform float uTexRotation[4];
 
 vec2 texUv(int k) {
   vec2 uv = uTexUse[k].y == 1 ? vUv1 : vUv0;
@@ -94,4 +98,7 @@ void main() {
   outPosition = vec4(vPosition, uMaterialId);
   outNormal = vec4(n, roughness);
   outBase = vec4(base.rgb, metallic);
+  vec3 emission = uEmission;
+  if (uTexUse[3].x != 0 && emission != vec3(0.0)) emission *= texture(uEmissiveTex, texUv(3)).rgb;
+  outEmission = vec4(emission, 0.0);
 }

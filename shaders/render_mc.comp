@@ -21,6 +21,7 @@ layout(rgba32f, binding = 1) readonly uniform image2D uGNormal;
 layout(rgba32f, binding = 2) readonly uniform image2D uGBase;
 layout(rgba32f, binding = 3) writeonly uniform image2D uCarLayer;
 layout(rgba32f, binding = 4) writeonly uniform image2D uShadowLayer;
+layout(rgba32f, binding = 5) readonly uniform image2D uGEmission;
 layout(binding = 1) uniform sampler2D uEnvironment;  // equirect, in the lighting's frame
 
 struct MaterialTerm {
@@ -28,7 +29,7 @@ struct MaterialTerm {
   vec4 color;
   vec4 params;
 };
-// Per material uTermsPerMaterial BRDF terms, then one whose colour is the radiance it emits.
+// Per material uTermsPerMaterial BRDF terms (what it emits is in the G-buffer).
 layout(std430, binding = 5) readonly buffer Materials { MaterialTerm terms[]; };
 layout(std430, binding = 6) writeonly buffer Counts { uvec4 counts[]; };  // 0, shadow rays, 0, samples
 layout(std430, binding = 8) readonly buffer EnvRows { float rowCdf[]; };     // H + 1, rowCdf[H] = 1
@@ -42,7 +43,7 @@ uniform float uFocal;
 uniform mat3 uEnvFromWorld;
 uniform int uTermsPerMaterial;
 uniform int uMaterialCount;
-int materialRow(int material) { return material * (uTermsPerMaterial + 1); }
+int materialRow(int material) { return material * uTermsPerMaterial; }
 uniform float uSurfaceOffset;
 uniform int uGround;
 uniform vec2 uGroundCenter;
@@ -308,7 +309,7 @@ void main() {
       sum += value * (shadowRay(p, n, origin, wi) * groundLit(origin, wi));
       count.y += 1u;
     }
-    car = vec4(sum / float(max(uSamples, 1)) + terms[materialRow(material) + uTermsPerMaterial].color.rgb, 1.0);
+    car = vec4(sum / float(max(uSamples, 1)) + imageLoad(uGEmission, pixel).rgb, 1.0);
   } else if (uGround != 0) {
     vec3 dir = normalize(uWorldFromCamera * vec3((vec2(pixel) + 0.5 - 0.5 * vec2(uSize)) / uFocal, 1.0));
     float t = dir.y < 0.0 ? -uCameraPosition.y / dir.y : -1.0;

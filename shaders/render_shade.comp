@@ -24,6 +24,7 @@ layout(rgba32f, binding = 1) readonly uniform image2D uGNormal;    // xyz, rough
 layout(rgba32f, binding = 2) readonly uniform image2D uGBase;      // rgb, metallic
 layout(rgba32f, binding = 3) writeonly uniform image2D uCarLayer;  // rgb radiance, coverage
 layout(rgba32f, binding = 4) writeonly uniform image2D uShadowLayer;  // rgb ratio, 1 on ground pixels
+layout(rgba32f, binding = 5) readonly uniform image2D uGEmission;  // rgb: the radiance the surface emits
 
 struct LightSg {
   vec4 axis_lambda;  // world axis, λ
@@ -39,7 +40,7 @@ struct MaterialTerm {
   vec4 color;
   vec4 params;
 };
-// Per material uTermsPerMaterial BRDF terms, then one whose colour is the radiance it emits.
+// Per material uTermsPerMaterial BRDF terms (what it emits is in the G-buffer).
 layout(std430, binding = 5) readonly buffer Materials { MaterialTerm terms[]; };
 layout(std430, binding = 6) writeonly buffer Counts { uvec4 counts[]; };  // lobes, cones, triple products, SGs
 // material::ClampedCosineTable over (λ, z = n·c), row-major, its two blocks interleaved:
@@ -79,7 +80,7 @@ uniform float uConeCoverage;
 uniform float uMaxConeHalfAngle;
 uniform int uTermsPerMaterial;
 uniform int uMaterialCount;
-int materialRow(int material) { return material * (uTermsPerMaterial + 1); }
+int materialRow(int material) { return material * uTermsPerMaterial; }
 uniform float uSurfaceOffset;  // metres along the normal where the car's cones start
 // RenderOptions::exact_peak_shadows: each peak's visibility from rays against the triangles (one,
 // or seven for a peak wider than 1°; from the surface point gSurface, uExactRayOffset along
@@ -636,7 +637,7 @@ vec3 bounceRadiance(ivec2 q, vec3 wo_in) {
   vec4 gn = imageLoad(uGNormal, q);
   vec4 gb = imageLoad(uGBase, q);
   vec3 n = normalize(gn.xyz);
-  vec3 emitted = terms[materialRow(material) + uTermsPerMaterial].color.rgb;
+  vec3 emitted = imageLoad(uGEmission, q).rgb;
   if (dot(n, wo_in) <= 0.0) return emitted;
   vec3 wo = bendView(n, wo_in);
   float visible[kMaxPeaks];
@@ -872,7 +873,7 @@ void main() {
       for (int k = 0; k < kMaxPeaks; ++k)
         if (k < uPeakCount) gRadiance += max(peaks[k].amplitude.xyz * gPeakSum[k], vec3(0.0)) * gPeakVisibility[k];
     if (uBounce != 0) gRadiance += specularBounce();
-    car = vec4(gRadiance + terms[materialRow(material) + uTermsPerMaterial].color.rgb, 1.0);
+    car = vec4(gRadiance + imageLoad(uGEmission, pixel).rgb, 1.0);
   }
   imageStore(uCarLayer, pixel, car);
   imageStore(uShadowLayer, pixel, shadow);

@@ -50,6 +50,7 @@ void TripleProductRenderer::Impl::RenderOnCpu(const Frame& fr, RenderResult* out
   g.position = g_position.Read<float>(GL_RGBA, GL_FLOAT, 4);
   g.normal = g_normal.Read<float>(GL_RGBA, GL_FLOAT, 4);
   g.base = g_base.Read<float>(GL_RGBA, GL_FLOAT, 4);
+  g.emission = g_emission.Read<float>(GL_RGBA, GL_FLOAT, 4);
   auto t0 = SteadyClock::now();  // the shading stage alone, as on the GPU
   ShadeOnCpu(fr, g, out, tally);
   out->ms.shade = MsSince(t0);
@@ -67,7 +68,6 @@ void TripleProductRenderer::Impl::ShadeOnCpu(const Frame& fr, const detail::GBuf
   in.gbuffer = &g;
   in.camera = fr.shaded_camera;
   in.materials = &material_terms;
-  in.emission = &emission;
   in.lighting = &lighting;
   in.bins = bins.get();
   in.grid = fr.geometry ? cpu_grid.get() : nullptr;

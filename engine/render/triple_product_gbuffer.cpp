@@ -86,6 +86,7 @@ void TripleProductRenderer::Impl::EnsureTargets(int w, int h, int out_w, int out
   g_position = rgba32(w, h);
   g_normal = rgba32(w, h);
   g_base = rgba32(w, h);
+  g_emission = rgba32(w, h);
   car_layer = rgba32(out_w, out_h);
   shadow_layer = rgba32(out_w, out_h);
   composite_layer = rgba32(out_w, out_h);
@@ -103,9 +104,13 @@ void TripleProductRenderer::Impl::EnsureTargets(int w, int h, int out_w, int out
   }
   g_depth = gl::Texture::Create2D(GL_DEPTH_COMPONENT32F, w, h);
   framebuffer = gl::Framebuffer();
-  framebuffer.AttachColor(g_position, 0).AttachColor(g_normal, 1).AttachColor(g_base, 2).AttachDepth(g_depth);
-  const GLenum draw[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
-  glNamedFramebufferDrawBuffers(framebuffer.id(), 3, draw);
+  framebuffer.AttachColor(g_position, 0)
+      .AttachColor(g_normal, 1)
+      .AttachColor(g_base, 2)
+      .AttachColor(g_emission, 3)
+      .AttachDepth(g_depth);
+  const GLenum draw[4] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2, GL_COLOR_ATTACHMENT3};
+  glNamedFramebufferDrawBuffers(framebuffer.id(), 4, draw);
   framebuffer.CheckComplete();
   counts = gl::Buffer();
   counts.Allocate(static_cast<std::size_t>(w) * h * 16);
@@ -127,7 +132,7 @@ void TripleProductRenderer::Impl::RasterizeGBuffer(const Frame& fr, RenderTiming
   framebuffer.Bind();
   glViewport(0, 0, sw, sh);
   const float zero[4] = {0, 0, 0, 0};
-  for (int i = 0; i < 3; ++i) glClearNamedFramebufferfv(framebuffer.id(), GL_COLOR, i, zero);
+  for (int i = 0; i < 4; ++i) glClearNamedFramebufferfv(framebuffer.id(), GL_COLOR, i, zero);
   const float one = 1.f;
   glClearNamedFramebufferfv(framebuffer.id(), GL_DEPTH, 0, &one);
   glEnable(GL_DEPTH_TEST);
@@ -182,22 +187,26 @@ glm::mat4 TripleProductRenderer::Impl::ClipFromWorld(const Frame& fr) const {
 
 void TripleProductRenderer::Impl::DrawGBufferPrimitive(gl::Program& gp, Primitive& p) {
   const auto& m = materials[static_cast<std::size_t>(p.material)];
+  const glm::vec3 emitted = emission.at(static_cast<std::size_t>(p.material));
   gp.Set("uMaterialId", static_cast<float>(p.material + 1))
       .Set("uBaseColorFactor", m.base_color_factor.x, m.base_color_factor.y, m.base_color_factor.z,
            m.base_color_factor.w)
       .Set("uMetallicFactor", m.metallic_factor)
       .Set("uRoughnessFactor", m.roughness_factor)
       .Set("uNormalScale", m.normal_scale)
+      .Set("uEmission", emitted.x, emitted.y, emitted.z)
       .Set("uAlphaCutoff", m.alpha_mode == scene::PbrMaterial::AlphaMode::kMask ? m.alpha_cutoff : -1.f);
-  const scene::TextureRef* refs[3] = {&m.base_color_texture, &m.metallic_roughness_texture, &m.normal_texture};
-  for (int k = 0; k < 3; ++k) {
+  // Texture units: base colour and emission sRGB, the others linear (render_gbuffer.frag).
+  const scene::TextureRef* refs[4] = {&m.base_color_texture, &m.metallic_roughness_texture, &m.normal_texture,
+                                      &m.emissive_texture};
+  for (int k = 0; k < 4; ++k) {
     const auto& r = *refs[k];
     const std::string s = std::to_string(k);
     glProgramUniform2i(gp.id(), gp.Uniform(("uTexUse[" + s + "]").c_str()), r.valid() ? 1 : 0, r.texcoord);
     gp.Set(("uTexOffsetScale[" + s + "]").c_str(), r.offset.x, r.offset.y, r.scale.x, r.scale.y)
         .Set(("uTexRotation[" + s + "]").c_str(), r.rotation);
     if (r.valid()) {
-      const auto it = textures.find({r.image, k == 0});
+      const auto it = textures.find({r.image, k == 0 || k == 3});
       if (it != textures.end()) {
         it->second.BindUnit(static_cast<GLuint>(k));
         continue;

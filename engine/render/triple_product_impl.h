@@ -44,7 +44,9 @@ struct TripleProductRenderer::Impl {
   std::map<std::pair<int, bool>, gl::Texture> textures;  // (image, sRGB)
   gl::Texture white{gl::NoCreate};
   detail::MaterialTerms material_terms;
-  std::vector<glm::vec3> emission;  // per material: the radiance it emits (glTF emissive)
+  // Per material: the radiance it emits before its emissive texture (glTF emissive factor ×
+  // strength; 0 under an override). The G-buffer multiplies in the texture.
+  std::vector<glm::vec3> emission;
   gl::Buffer terms_buffer{gl::NoCreate}, ndf_table{gl::NoCreate}, cosine_table{gl::NoCreate};
 
   std::vector<glm::vec3> triangles;  // world
@@ -85,7 +87,8 @@ struct TripleProductRenderer::Impl {
       flag_program{gl::NoCreate}, counts_program{gl::NoCreate};
   int fb_width = 0, fb_height = 0, out_width = 0, out_height = 0;
   gl::Framebuffer framebuffer{gl::NoCreate};
-  gl::Texture g_position{gl::NoCreate}, g_normal{gl::NoCreate}, g_base{gl::NoCreate}, g_depth{gl::NoCreate};
+  gl::Texture g_position{gl::NoCreate}, g_normal{gl::NoCreate}, g_base{gl::NoCreate}, g_emission{gl::NoCreate},
+      g_depth{gl::NoCreate};
   gl::Texture car_layer{gl::NoCreate}, shadow_layer{gl::NoCreate}, composite_layer{gl::NoCreate},
       background_layer{gl::NoCreate};
   // RenderOptions::supersample > 1: the shading's car and shadow layers at the G-buffer's size,

@@ -142,6 +142,7 @@ struct GBuffer {
   std::vector<float> position;  // xyz, material index + 1 (0: empty)
   std::vector<float> normal;    // xyz, roughness
   std::vector<float> base;      // rgb, metallic
+  std::vector<float> emission;  // rgb: the radiance the surface emits, 0
 };
 
 // Per-pixel counters, as render_shade.comp writes them: lobes, cones, triple products, SGs.
@@ -153,7 +154,6 @@ struct ReferenceInputs {
   const GBuffer* gbuffer = nullptr;
   PinholeCamera camera;
   const MaterialTerms* materials = nullptr;
-  const std::vector<glm::vec3>* emission = nullptr;  // per material (nullptr: none emits)
   const PreparedLighting* lighting = nullptr;
   const lighting::OverlapBins* bins = nullptr;
   const visibility::VoxelGrid* grid = nullptr;   // nullptr: nothing occludes

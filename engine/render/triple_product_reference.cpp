@@ -305,6 +305,12 @@ bool BounceHit(const ReferenceInputs& in, const glm::dvec3& o, const glm::dvec3&
   return false;
 }
 
+// What G-buffer sample q emits (none where the G-buffer has no emission channel).
+glm::dvec3 Emitted(const GBuffer& g, std::size_t q) {
+  if (4 * q + 2 >= g.emission.size()) return glm::dvec3(0);
+  return glm::dvec3(g.emission[4 * q], g.emission[4 * q + 1], g.emission[4 * q + 2]);
+}
+
 // render_shade.comp's bounceRadiance: what the car surface at G-buffer sample q sends along
 // wo_in, from its specular lobes under the constant, the coarse SRBFs and the peaks (shadowed from
 // there), plus what it emits.
@@ -312,9 +318,7 @@ glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::d
   const GBuffer& g = *in.gbuffer;
   const int material = static_cast<int>(std::lround(g.position[4 * q + 3])) - 1;
   if (material < 0 || material >= static_cast<int>(in.materials->size())) return glm::dvec3(0);
-  const glm::dvec3 emitted = in.emission && static_cast<std::size_t>(material) < in.emission->size()
-                                 ? glm::dvec3((*in.emission)[static_cast<std::size_t>(material)])
-                                 : glm::dvec3(0);
+  const glm::dvec3 emitted = Emitted(g, q);
   const glm::dvec3 x(g.position[4 * q], g.position[4 * q + 1], g.position[4 * q + 2]);
   const glm::dvec3 n = glm::normalize(glm::dvec3(g.normal[4 * q], g.normal[4 * q + 1], g.normal[4 * q + 2]));
   if (glm::dot(n, wo_in) <= 0) return emitted;
@@ -469,8 +473,7 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
               if (BounceHit(in, p + static_cast<double>(kExactRayOffset) * n, d, &hit))
                 radiance += bounce_weight[t] * BounceRadiance(in, hit, -d);
             }
-            if (in.emission && static_cast<std::size_t>(material) < in.emission->size())
-              radiance += glm::dvec3((*in.emission)[static_cast<std::size_t>(material)]);
+            radiance += Emitted(g, idx);
             for (int c = 0; c < 3; ++c) result->car.rgb[3 * idx + c] = static_cast<float>(radiance[c]);
             result->car_alpha[idx] = 1.f;
           } else if (in.options.ground) {

@@ -336,6 +336,7 @@ void TripleProductRenderer::Impl::UploadModel(const scene::GltfScene& model, con
     if (mat.base_color_texture.valid()) TextureFor(model, mat.base_color_texture.image, true);
     if (mat.metallic_roughness_texture.valid()) TextureFor(model, mat.metallic_roughness_texture.image, false);
     if (mat.normal_texture.valid()) TextureFor(model, mat.normal_texture.image, false);
+    if (mat.emissive_texture.valid()) TextureFor(model, mat.emissive_texture.image, true);
     primitives.push_back(std::move(p));
   }
 }
@@ -477,10 +478,10 @@ int TripleProductRenderer::PrepareShading(const PinholeCamera& camera) {
 
 void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides) {
   Impl& im = *impl_;
-  // Material terms: the glTF metallic-roughness unless an override names the material. Each
-  // material's row in the buffer: its kTermsPerMaterial terms, then one whose colour is the
-  // radiance it emits: the glTF material's, none under an override, which replaces the whole
-  // material (as the Cycles references' paint overrides do: bench render's paints cover the lamps).
+  // Material terms: the glTF metallic-roughness unless an override names the material; each
+  // material's row in the buffer holds its kTermsPerMaterial terms. What it emits: the glTF
+  // material's, none under an override, which replaces the whole material (as the Cycles
+  // references' paint overrides do: bench render's paints cover the lamps).
   for (const auto& o : overrides)
     for (const auto& brdf : o.brdfs) material::CheckBrdf(brdf);
   std::vector<GpuTerm> gpu_terms;
@@ -492,14 +493,13 @@ void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides
       if (o.material.empty() || Lower(mat.name).find(Lower(o.material)) != std::string::npos) terms = o.brdfs;
     if (terms.size() > static_cast<std::size_t>(kTermsPerMaterial))
       throw Error("material override", "at most " + std::to_string(kTermsPerMaterial) + " BRDF terms");
-    std::vector<GpuTerm> row(kTermsPerMaterial + 1);
+    std::vector<GpuTerm> row(kTermsPerMaterial);
     if (terms.empty()) {
       row[0].type.x = kGltf;
     } else {
       for (std::size_t k = 0; k < terms.size(); ++k) row[k] = ToGpuTerm(terms[k]);
     }
     im.emission.push_back(terms.empty() ? mat.emission() : glm::vec3(0));
-    row.back().color = glm::vec4(im.emission.back(), 0);
     gpu_terms.insert(gpu_terms.end(), row.begin(), row.end());
     material_terms.push_back(std::move(terms));
   }

@@ -145,6 +145,7 @@ void TripleProductRenderer::Impl::BindShadeInputs(const Frame& fr) {
   g_position.BindImage(0, GL_READ_ONLY);
   g_normal.BindImage(1, GL_READ_ONLY);
   g_base.BindImage(2, GL_READ_ONLY);
+  g_emission.BindImage(5, GL_READ_ONLY);
   (fr.k > 1 ? shaded_car : car_layer).BindImage(3, GL_WRITE_ONLY);
   (fr.k > 1 ? shaded_shadow : shadow_layer).BindImage(4, GL_WRITE_ONLY);
   srbf_buffer.BindBase(GL_SHADER_STORAGE_BUFFER, 0);
@@ -331,6 +332,7 @@ void TripleProductRenderer::Impl::FlagAndShadeListed(const Frame& fr, gl::Progra
   g_position.BindImage(0, GL_READ_ONLY);
   g_normal.BindImage(1, GL_READ_ONLY);
   g_base.BindImage(2, GL_READ_ONLY);
+  g_emission.BindImage(5, GL_READ_ONLY);
   car.BindImage(3, GL_WRITE_ONLY);
   shadow.BindImage(4, GL_WRITE_ONLY);
   sp.Set("uAdaptivePass", 1).Set("uListPitch", kListPitch).Set("uSampleStride", 1).Set("uSamplePhase", 0).Use();

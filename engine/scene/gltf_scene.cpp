@@ -641,6 +641,8 @@ class SceneBuilder {
           glm::vec3(float(m.emissiveFactor[0]), float(m.emissiveFactor[1]), float(m.emissiveFactor[2]));
     if (!finite01(out.emissive_factor.r) || !finite01(out.emissive_factor.g) || !finite01(out.emissive_factor.b))
       reader_.Fail(what + " has an emissive factor outside [0, 1]");
+    out.emissive_texture =
+        Texture(m.emissiveTexture.index, m.emissiveTexture.texCoord, m.emissiveTexture.extensions, what + " emissive");
     if (const auto strength = m.extensions.find("KHR_materials_emissive_strength"); strength != m.extensions.end()) {
       const tinygltf::Value& value = strength->second.Get("emissiveStrength");
       if (value.IsNumber()) out.emissive_strength = float(value.GetNumberAsDouble());

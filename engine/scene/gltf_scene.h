@@ -11,7 +11,7 @@
 // - Missing normals are computed flat, as the glTF spec demands (vertices are unwelded).
 //   Degenerate or non-finite normals fall back to the face normal, then to +Y.
 // - Textures are decoded once per glTF image to RGBA8 (16-bit images are reduced to 8 bits),
-//   rows top-down as stored in the file; base colour stays sRGB-encoded (the renderer
+//   rows top-down as stored in the file; base colour and emission stay sRGB-encoded (the renderer
 //   linearizes), metallic-roughness stays linear (G = roughness, B = metallic, as in glTF).
 //
 // Errors: a malformed, truncated or absurd file throws odvr::Error whose `where` is the path and
@@ -71,8 +71,9 @@ struct PbrMaterial {
   TextureRef normal_texture;
   float normal_scale = 1;
   glm::vec3 emissive_factor{0, 0, 0};
+  TextureRef emissive_texture;  // sRGB; multiplies the factor (glTF spec)
   float emissive_strength = 1;  // KHR_materials_emissive_strength
-  // The radiance the surface emits, linear (emissive textures are not read).
+  // The radiance the surface emits, linear, before the emissive texture's factor.
   glm::vec3 emission() const { return emissive_factor * emissive_strength; }
   bool double_sided = false;
   enum class AlphaMode { kOpaque, kMask, kBlend } alpha_mode = AlphaMode::kOpaque;

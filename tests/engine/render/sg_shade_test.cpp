@@ -443,6 +443,50 @@ TEST_F(SgShadeGL, EmissiveMaterialAddsItsRadianceInEveryShader) {
   expect_emission(sunny.Render(View(), ShadeDevice::kCpu), "sunny, CPU reference", &base_cpu);
 }
 
+// glTF's emission is the factor × strength × the emissive texture, sRGB-decoded: a texture that
+// is mostly black (ToyCar's lamps) must not let the factor light the whole body. One texel
+// (188, 128, 64) decodes to (0.5029, 0.2158, 0.0513); in the dark the sphere reads twice that in
+// the SG shader, its CPU reference and the Monte-Carlo shader alike.
+TEST_F(SgShadeGL, EmissiveTextureScalesTheEmissionInEveryShader) {
+  scene::GltfScene lit = SphereAndBox();
+  scene::TextureImage texel;
+  texel.name = "lamp texel";
+  texel.width = texel.height = 1;
+  texel.rgba = {188, 128, 64, 255};
+  lit.images.push_back(texel);
+  lit.materials[0].emissive_factor = glm::vec3(1.f);
+  lit.materials[0].emissive_strength = 2.f;
+  lit.materials[0].emissive_texture.image = 0;
+  const glm::dvec3 expected = 2.0 * glm::dvec3(0.50289, 0.21586, 0.05127);
+  RenderOptions o;
+  o.voxel_resolution = 64;
+  o.ground = false;
+  o.specular_bounce = false;
+  const auto sphere_mean = [&](const RenderResult& r, const char* what) {
+    glm::dvec3 sum(0);
+    int n = 0;
+    for (std::size_t i = 0; i < r.car_alpha.size(); ++i) {
+      if (r.car_alpha[i] <= 0.5f || !(r.car.rgb[3 * i] > 0.1f)) continue;
+      sum += glm::dvec3(r.car.rgb[3 * i], r.car.rgb[3 * i + 1], r.car.rgb[3 * i + 2]);
+      ++n;
+    }
+    const glm::dvec3 mean = sum / static_cast<double>(std::max(n, 1));
+    std::printf("%s: %d sphere px, mean emission (%.4f, %.4f, %.4f)\n", what, n, mean.x, mean.y, mean.z);
+    EXPECT_GT(n, 300) << what;
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], expected[c], 2e-3) << what << " channel " << c;
+  };
+  TripleProductRenderer dark(lit, glm::dmat4(1.0), o);
+  dark.SetLighting(lighting::SgLighting{});
+  sphere_mean(dark.Render(View(), ShadeDevice::kGpu), "SG shader");
+  sphere_mean(dark.Render(View(), ShadeDevice::kCpu), "CPU reference");
+  RenderOptions mc_options = o;
+  mc_options.monte_carlo_samples = 4;
+  TripleProductRenderer mc(lit, glm::dmat4(1.0), mc_options);
+  mc.SetLighting(lighting::SgLighting{});
+  mc.SetEnvironment(sphere::EquirectImage(64, 32, 0.f));
+  sphere_mean(mc.Render(View()), "Monte-Carlo shader");
+}
+
 TEST_F(SgShadeGL, MoreLevelsAndMoreConesConverge) {
   // Levels: a glossy sphere under a sky with detail on every level; the converged answer uses all
   // five. Leaving levels out loses that detail, so the error to it shrinks as levels are added.

@@ -210,7 +210,8 @@ TEST(GltfScene, DamagedHelmetHasAllPbrMaps) {
   EXPECT_TRUE(m.base_color_texture.valid());
   EXPECT_TRUE(m.metallic_roughness_texture.valid());
   EXPECT_TRUE(m.normal_texture.valid());
-  EXPECT_EQ(s.images.size(), 3u);  // AO and emissive maps are not read
+  EXPECT_TRUE(m.emissive_texture.valid());
+  EXPECT_EQ(s.images.size(), 4u);  // the AO map is not read
   for (const auto& im : s.images) EXPECT_EQ(im.width, 2048) << im.name;
   // The helmet's 90° node rotation about X turns its Z-up mesh Y-up: normals follow it, so the
   // mean normal of the top-most vertices points up.
