@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # odvr set-up on Debian 12, as root (or with sudo). Idempotent: a second run reuses the build.
-#   scripts/setup.sh demo   install, build the player alone, play the default demo (media/demo, with the car)
+#   scripts/setup.sh demo   install, build the player alone, play the default demo (media/drive, with the car)
 #   scripts/setup.sh test   install, build, run every test
 #   scripts/setup.sh deps   install the Debian packages only
 #   scripts/setup.sh build  install and build
@@ -54,8 +54,8 @@ case "${1:-}" in
   demo)
     install_deps
     build odvr  # the player alone: the test binaries and benchmarks are the other command's
-    # odvr with no arguments plays media/demo with its car: a window when there is a display,
-    # PNG frames (and where they went) when there is none.
+    # odvr with no arguments plays the demo (media/drive) with its car: a window when there is a
+    # display, PNG frames (and where they went) when there is none.
     "$BUILD_DIR"/app/odvr
     ;;
   *)

@@ -69,7 +69,8 @@ int RunBenchPlayer(const BenchPlayerOptions& b) {
   std::ostringstream md;
   md << "# Player frame budget\n\n"
      << "Made by `odvr bench player --size " << b.size << " --frames " << b.frames << " --drive " << b.drive
-     << "`: the demo (`media/demo/street.mp4`, its `trajectory_gt.json` and `car.glb`) in augmented mode, "
+     << "`: the demo (`media/" << demo.filename().string()
+     << "/street.mp4`, its `trajectory_gt.json` and `car.glb`) in augmented mode, "
      << "headless, the car driven by the script; the first frame (shader compilation) is left out. Lighting: "
      << b.levels << " HEALPix levels from the frame, at most " << CarRendering{}.lighting_width
      << " wide (its peaks found there, the rest box-averaged to the transform's grid); visibility: " << b.voxels

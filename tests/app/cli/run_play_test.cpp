@@ -102,6 +102,25 @@ TEST(RunPlayGL, HeadlessDemoWithTheCarAndAScriptedDrive) {
   fs::remove_all(dir);
 }
 
+// No arguments: the 10 s drive (media/drive), its poses and its car, the frames where it says.
+TEST(RunPlayGL, TheDefaultDemoIsTheTenSecondDrive) {
+  const fs::path drive = fs::path(ODVR_SOURCE_DIR) / "media" / "drive";
+  const fs::path dir = TempDir("odvr_play_default");
+  const auto r = RunOdvr("play --headless --size 96x54 --frames 2 --out " + dir.string() + kSmall + "--json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(fs::path(j["video"].get<std::string>()), drive / "street.mp4");
+  EXPECT_EQ(fs::path(j["trajectory"].get<std::string>()), drive / "trajectory_gt.json");
+  ASSERT_EQ(j["frames"].size(), 2u);
+  for (const auto& f : j["frames"]) EXPECT_GT(f["car_pixels"].get<int>(), 20);
+  cv::VideoCapture clip((drive / "street.mp4").string());
+  ASSERT_TRUE(clip.isOpened());
+  EXPECT_GE(clip.get(cv::CAP_PROP_FRAME_WIDTH), 2048);
+  EXPECT_GE(clip.get(cv::CAP_PROP_FRAME_COUNT) / clip.get(cv::CAP_PROP_FPS), 10.0) << "seconds of driving";
+  fs::remove_all(dir);
+}
+
+
 // Nobody holds a key: the video plays and the car rides ahead of the camera (it stood on frame 0
 // until W was pressed); held W stops the car at the end of the reconstructed street (it drove on
 // to 165 m on a 35 m trajectory, 8 px tall).

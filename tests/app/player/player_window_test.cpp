@@ -27,6 +27,12 @@ using odvr::testing::MissingWindowTool;
 using odvr::testing::ScratchDir;
 using odvr::testing::ScriptedWindow;
 
+// The rig's 1 s street with its poses and car (media/demo), named: the car's place in these
+// shots is measured for that clip, whichever clip odvr plays by default.
+const fs::path kDemo = fs::path(ODVR_SOURCE_DIR) / "media" / "demo";
+const std::string kDemoDrive = (kDemo / "street.mp4").string() + " --trajectory " +
+                               (kDemo / "trajectory_gt.json").string() + " --car " + (kDemo / "car.glb").string() + " ";
+
 cv::Mat Shot(const json& line) { return cv::imread(line["file"].get<std::string>()); }
 
 double MeanAbsDiff(const cv::Mat& a, const cv::Mat& b) {
@@ -197,7 +203,7 @@ TEST(PlayerWindowGL, CarAppearsAtItsProjectionAndDrivesWithW) {
   ScratchDir scratch("odvr_player_window_car");
   // Looking 15° right of the car, so that it stands left of the middle.
   // A script of no keys: the car stands until W is pressed, instead of cruising with the video.
-  ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15 --drive -:0.01s");
+  ScriptedWindow window(scratch.dir, kDemoDrive + "--size 480x270 --levels 3 --voxels 64 --yaw 15 --drive -:0.01s");
   window.Shot("mousemove --window $W 470 260 key F1");  // 1: overlay off, the car at rest
   window.Shot("key space c");                           // 2: paused, the car hidden
   window.Shot("key c space keydown w");                 // 3: driving
@@ -256,7 +262,8 @@ std::string PanelWidget(const std::string& name) {
 TEST(PlayerWindowGL, ClickOnThePanelsLevelCheckboxChangesTheCar) {
   if (const std::string tool = MissingWindowTool(); !tool.empty()) GTEST_SKIP() << tool << " is not installed";
   ScratchDir scratch("odvr_player_window_panel");
-  ScriptedWindow window(scratch.dir, "--size 480x270 --levels 3 --voxels 64 --yaw 15 --panel --drive -:0.01s");
+  ScriptedWindow window(scratch.dir,
+                        kDemoDrive + "--size 480x270 --levels 3 --voxels 64 --yaw 15 --panel --drive -:0.01s");
   window.Shot("mousemove --window $W 5 265 key space F1");  // 1: paused, nothing over the picture
   // ImGui toggles a checkbox on the frame that sees the release, and the scene renders the new
   // look on the frame after: a screenshot in between.
