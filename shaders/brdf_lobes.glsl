@@ -5,6 +5,7 @@
 // unit amplitude.
 const float kMinCosView = 1e-3;
 const float kMinAlpha = 0.002;
+const float kMinSheenAlpha = 0.07 * 0.07;  // material::kMinSheenAlpha
 const float kCosineSgLambda = 2.133;
 const float kCosineSgAmplitude = 1.170;
 const float kLobePi = 3.14159265358979323846;
@@ -18,20 +19,37 @@ const int kBrdfBlinnPhong = 4;
 const int kBrdfWard = 5;
 const int kBrdfCookTorrance = 6;
 const int kBrdfMetallicRoughness = 7;
+const int kBrdfSheen = 8;  // material::Sheen: color, params.x its roughness
 
 
-// Per α ∈ [kMinAlpha, 1] (uniform nodes, filled by the renderer) two vec4: x of the first is λ·α²
-// of the one-SG fit of a GGX/Beckmann NDF (material::NdfSgLambda); the second GGX's two SGs
-// (material::GgxSg): λ_0 α², λ_1 α², μ_0 π α², μ_1 π α². Smooth in α (λα² → 2 − α² as α → 0),
-// so linear interpolation is ample.
+// Per α ∈ [kMinAlpha, 1] (kNdfTableNodes uniform nodes, filled by the renderer) two vec4: x of the
+// first is λ·α² of the one-SG fit of a GGX/Beckmann NDF (material::NdfSgLambda); the second GGX's
+// two SGs (material::GgxSg): λ_0 α², λ_1 α², μ_0 π α², μ_1 π α². Smooth in α (λα² → 2 − α² as
+// α → 0), so linear interpolation is ample. Then material::SheenAlbedoTable, four values a vec4.
 layout(std430, binding = 7) readonly buffer NdfTable { vec4 ndfTable[]; };
+const int kNdfTableNodes = 512;
+const int kSheenTableNodes = 33;
 
 vec4 ndfTableAt(float alpha, int column) {
   alpha = clamp(alpha, kMinAlpha, 1.0);
-  int n = ndfTable.length() / 2;
+  int n = kNdfTableNodes;
   float x = (alpha - kMinAlpha) / (1.0 - kMinAlpha) * float(n - 1);
   int i = min(int(x), n - 2);
   return mix(ndfTable[2 * i + column], ndfTable[2 * i + 2 + column], x - float(i));
+}
+
+// material::SheenAlbedo: bilinear in the table's nodes over n·wo and the roughness.
+float sheenTableAt(int i, int j) {
+  int k = j * kSheenTableNodes + i;
+  return ndfTable[2 * kNdfTableNodes + k / 4][k % 4];
+}
+float sheenAlbedo(float cos_view, float roughness) {
+  float x = clamp(cos_view, 0.0, 1.0) * float(kSheenTableNodes - 1);
+  float y = clamp(roughness, 0.0, 1.0) * float(kSheenTableNodes - 1);
+  int i = min(int(x), kSheenTableNodes - 2), j = min(int(y), kSheenTableNodes - 2);
+  float fx = x - float(i), fy = y - float(j);
+  return mix(mix(sheenTableAt(i, j), sheenTableAt(i + 1, j), fx), mix(sheenTableAt(i, j + 1), sheenTableAt(i + 1, j + 1), fx),
+             fy);
 }
 
 float ndfSgLambda(float alpha) {
@@ -262,6 +280,11 @@ TermLobes describeTerm(int type, vec4 color, vec4 params, vec3 base, float metal
   } else if (type == kBrdfLambertian) {
     t.has_cosine = true;
     t.cosine_weight = color.rgb / kLobePi;
+    t.count = 1;
+  } else if (type == kBrdfSheen) {
+    // material::LobesOf(Sheen): a clamped cosine of the sheen's albedo for this view, E(wo)/π.
+    t.has_cosine = true;
+    t.cosine_weight = color.rgb * (sheenAlbedo(dot(n, wo), params.x) / kLobePi);
     t.count = 1;
   } else if (type == kBrdfPhong) {
     float e = params.x;

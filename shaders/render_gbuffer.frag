@@ -25,6 +25,7 @@ uniform float uMetallicFactor;
 uniform float uRoughnessFactor;
 uniform float uNormalScale;
 uniform vec3 uEmission;  // factor × strength; 0 under a material override
+uniform float uTransmission;  // PbrMaterial::transmission
 uniform float uAlphaCutoff;  // < 0: opaque
 uniform vec3 uCameraPosition;
 // Per texture (base, metal-rough, normal, emissive): enabled, texcoord set, KHR_texture_transform.
@@ -97,7 +98,10 @@ void main() {
     n = validReflectionNormal(normalize(face), normalize(uCameraPosition - vPosition), n);
   outPosition = vec4(vPosition, uMaterialId);
   outNormal = vec4(n, roughness);
-  outBase = vec4(base.rgb, metallic);
+  // PbrMaterial::transmission: the dielectric's diffuse loses the transmitted share; scaling the
+  // base colour by 1 − T (1 − metallic) does that exactly for a dielectric (F0 = 0.04 whatever
+  // the base) and nothing to a metal, as the extension's layering has it.
+  outBase = vec4(base.rgb * (1.0 - uTransmission * (1.0 - clamp(metallic, 0.0, 1.0))), metallic);
   vec3 emission = uEmission;
   if (uTexUse[3].x != 0 && emission != vec3(0.0)) emission *= texture(uEmissiveTex, texUv(3)).rgb;
   outEmission = vec4(emission, 0.0);

@@ -205,6 +205,13 @@ vec3 evalTerm(int type, vec4 color, vec4 params, vec3 base, float metallic, floa
     return color.rgb * (exp(-tan2 / (a * a)) / (4.0 * kLobePi * a * a * sqrt(dot(n, wi) * dot(n, wo))));
   }
   if (type == kBrdfCookTorrance) return cookTorrance(color.rgb, params.x, params.y < 0.5, n, wi, wo);
+  if (type == kBrdfSheen) {
+    // material::Sheen: the Charlie D with Neubelt's V.
+    float alpha = max(params.x * params.x, kMinSheenAlpha);
+    float nh = dot(n, normalize(wi + wo)), ci = dot(n, wi), co = max(dot(n, wo), 0.0);
+    float d = (2.0 + 1.0 / alpha) * pow(sqrt(max(0.0, 1.0 - nh * nh)), 1.0 / alpha) / (2.0 * kLobePi);
+    return color.rgb * (d / (4.0 * max(ci + co - ci * co, 1e-9)));
+  }
   return vec3(0.0);
 }
 

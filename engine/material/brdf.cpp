@@ -70,6 +70,14 @@ MrParams FromMetallicRoughness(const MetallicRoughness& m) {
   return {glm::mix(glm::dvec3(0.04), base, metallic), base * (1.0 - metallic), ClampAlpha(r * r), r};
 }
 
+// Sheen's D V for n·wi, n·wo ≥ 0 and n·h (Sheen's comment).
+double CharlieSheen(double n_wi, double n_wo, double n_h, double roughness) {
+  const double alpha = std::max(roughness * roughness, kMinSheenAlpha);
+  const double sin_h = std::sqrt(std::max(0.0, 1.0 - n_h * n_h));
+  const double d = (2.0 + 1.0 / alpha) * std::pow(sin_h, 1.0 / alpha) / (2.0 * kPi);
+  return d / (4.0 * std::max(n_wi + n_wo - n_wi * n_wo, 1e-9));
+}
+
 // --- Analytic BRDFs (wo already bent, n·wi > 0) --------------------------------------------------
 
 glm::dvec3 Analytic(const Lambertian& m, const ShadingFrame&, const glm::dvec3&, const glm::dvec3&) {
@@ -106,6 +114,13 @@ glm::dvec3 Analytic(const CookTorrance& m, const ShadingFrame& f, const glm::dve
   const double g = SmithG(m.ndf, alpha, cos_i, cos_o, m.principled);
   return FresnelOf(m.principled ? Fresnel::kPrincipled : Fresnel::kSchlick, m.f0, glm::dot(wi, h)) *
          (d * g / (4.0 * cos_i * cos_o));
+}
+
+glm::dvec3 Analytic(const Sheen& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
+  const glm::dvec3 h = wi + wo;
+  const double l = glm::length(h);
+  const double n_h = l > 1e-12 ? glm::dot(f.n, h) / l : 0.0;
+  return m.color * CharlieSheen(glm::dot(f.n, wi), std::max(glm::dot(f.n, wo), 0.0), n_h, m.roughness);
 }
 
 glm::dvec3 Analytic(const MetallicRoughness& m, const ShadingFrame& f, const glm::dvec3& wi, const glm::dvec3& wo) {
@@ -181,6 +196,12 @@ void PushWarped(const Sg& d, MOf&& m_of, const ShadingFrame& f, const glm::dvec3
 void LobesOf(const Lambertian& m, const ShadingFrame& f, const glm::dvec3&, const LobeOptions&,
              std::vector<Lobe>* out) {
   out->push_back({CosineSg(f.n), m.albedo / kPi, glm::dvec3(0), true});
+}
+
+// A sheen's light comes from every direction, strongest at grazing ones: one clamped cosine of
+// its albedo for this view, E(wo)/π, so that under a constant light it reflects exactly E(wo).
+void LobesOf(const Sheen& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions&, std::vector<Lobe>* out) {
+  out->push_back({CosineSg(f.n), m.color * (SheenAlbedo(glm::dot(f.n, wo), m.roughness) / kPi), glm::dvec3(0), true});
 }
 
 void LobesOf(const Phong& m, const ShadingFrame& f, const glm::dvec3& wo, const LobeOptions& o,
@@ -629,7 +650,62 @@ void CheckBrdf(const Brdf& brdf) {
     CheckColour("mr", "base colour", m->base_color);
     CheckIn("mr", "metallic", m->metallic, 0, 1);
     CheckIn("mr", "roughness", m->roughness, 0, 1);
+  } else if (const auto* s = std::get_if<Sheen>(&brdf)) {
+    CheckColour("sheen", "colour", s->color);
+    CheckIn("sheen", "roughness", s->roughness, 0, 1);
   }
+}
+
+const std::vector<double>& SheenAlbedoTable() {
+  // Midpoint quadrature over the hemisphere in (n·wi, φ), φ over [0, π] by symmetry, n·wi in
+  // squared steps (the nodes crowd at the horizon, where a smooth sheen's light comes from). Per
+  // view and point, log sin θ_h and the rest of the integrand once; per roughness one exp.
+  static const std::vector<double> table = [] {
+    constexpr int kCos = 256, kPhi = 128;
+    constexpr int n = kSheenTableNodes;
+    std::vector<double> values(static_cast<std::size_t>(n) * n, 0.0);
+    std::vector<double> inv_alpha(n);
+    for (int j = 0; j < n; ++j) {
+      const double r = static_cast<double>(j) / (n - 1);
+      inv_alpha[static_cast<std::size_t>(j)] = 1.0 / std::max(r * r, kMinSheenAlpha);
+    }
+    for (int i = 0; i < n; ++i) {
+      const double mu_o = std::max(static_cast<double>(i) / (n - 1), kMinCosView);
+      const double s_o = std::sqrt(1.0 - mu_o * mu_o);
+      for (int a = 0; a < kCos; ++a) {
+        const double u = (a + 0.5) / kCos, mu_i = u * u, s_i = std::sqrt(1.0 - mu_i * mu_i);
+        // d(n·wi) = 2u du; the visibility and the cosine; the φ step (2π over the half range).
+        const double w = (2.0 * u / kCos) * mu_i / (4.0 * (mu_i + mu_o - mu_i * mu_o)) * (2.0 * kPi / kPhi);
+        for (int b = 0; b < kPhi; ++b) {
+          const double cos_phi = std::cos(kPi * (b + 0.5) / kPhi);
+          const double hz = mu_i + mu_o, h2 = 2.0 + 2.0 * (mu_i * mu_o + s_i * s_o * cos_phi);
+          const double sin2 = std::max(0.0, 1.0 - hz * hz / h2);
+          if (!(sin2 > 0)) continue;
+          const double log_sin = 0.5 * std::log(sin2);
+          for (int j = 0; j < n; ++j) {
+            const double k = inv_alpha[static_cast<std::size_t>(j)];
+            values[static_cast<std::size_t>(j) * n + static_cast<std::size_t>(i)] +=
+                w * (2.0 + k) / (2.0 * kPi) * std::exp(k * log_sin);
+          }
+        }
+      }
+    }
+    return values;
+  }();
+  return table;
+}
+
+double SheenAlbedo(double cos_view, double roughness) {
+  const std::vector<double>& t = SheenAlbedoTable();
+  const double x = std::clamp(cos_view, 0.0, 1.0) * (kSheenTableNodes - 1);
+  const double y = std::clamp(roughness, 0.0, 1.0) * (kSheenTableNodes - 1);
+  const int i = std::min(static_cast<int>(x), kSheenTableNodes - 2),
+            j = std::min(static_cast<int>(y), kSheenTableNodes - 2);
+  const double fx = x - i, fy = y - j;
+  const auto at = [&](int c, int r) {
+    return t[static_cast<std::size_t>(r) * kSheenTableNodes + static_cast<std::size_t>(c)];
+  };
+  return (1 - fy) * ((1 - fx) * at(i, j) + fx * at(i + 1, j)) + fy * ((1 - fx) * at(i, j + 1) + fx * at(i + 1, j + 1));
 }
 
 }  // namespace odvr::material

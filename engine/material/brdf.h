@@ -168,7 +168,26 @@ struct MetallicRoughness {
   double roughness = 0.5;  // perceptual
 };
 
-using Brdf = std::variant<Lambertian, Phong, BlinnPhong, Ward, CookTorrance, MetallicRoughness>;
+// glTF's KHR_materials_sheen, the layer a fabric adds at grazing angles: the Charlie sheen
+// (Estevez & Kulla 2017), D(h) = (2 + 1/α) sin(θ_h)^(1/α) / 2π with α = roughness² (at least
+// kMinSheenAlpha), and Neubelt's visibility V = 1 / (4 (n·wi + n·wo − (n·wi)(n·wo))):
+// f = color D V. The renderer adds it to the glTF base layer, as Blender's glTF importer adds its
+// Velvet, without the extension's albedo scaling of the base (1 − max(color) E(wo)).
+struct Sheen {
+  glm::dvec3 color{0};
+  double roughness = 0.5;  // perceptual
+};
+inline constexpr double kMinSheenAlpha = 0.07 * 0.07;
+
+// E(wo) = ∫ f(wi, wo) (n·wi) dwi / color of a sheen, for n·wo = cos_view and its roughness: from
+// a table of 33 × 33 nodes over cos_view, roughness ∈ [0, 1] (a 256² quadrature each, made once),
+// interpolated bilinearly (SheenAlbedoTable gives it as the shaders read it).
+double SheenAlbedo(double cos_view, double roughness);
+inline constexpr int kSheenTableNodes = 33;
+// Row-major by roughness, then cos_view: kSheenTableNodes² values.
+const std::vector<double>& SheenAlbedoTable();
+
+using Brdf = std::variant<Lambertian, Phong, BlinnPhong, Ward, CookTorrance, MetallicRoughness, Sheen>;
 
 // The parameters' ranges, one place for every caller: colours (albedo, ks, rho_s, f0, base
 // colour), metallic and roughness in [0, 1]; Phong and Blinn-Phong exponents in [0, 10⁵] (past

@@ -195,6 +195,7 @@ void TripleProductRenderer::Impl::DrawGBufferPrimitive(gl::Program& gp, Primitiv
       .Set("uRoughnessFactor", m.roughness_factor)
       .Set("uNormalScale", m.normal_scale)
       .Set("uEmission", emitted.x, emitted.y, emitted.z)
+      .Set("uTransmission", m.transmission)
       .Set("uAlphaCutoff", m.alpha_mode == scene::PbrMaterial::AlphaMode::kMask ? m.alpha_cutoff : -1.f);
   // Texture units: base colour and emission sRGB, the others linear (render_gbuffer.frag).
   const scene::TextureRef* refs[4] = {&m.base_color_texture, &m.metallic_roughness_texture, &m.normal_texture,

@@ -48,6 +48,7 @@ struct TripleProductRenderer::Impl {
   // strength; 0 under an override). The G-buffer multiplies in the texture.
   std::vector<glm::vec3> emission;
   gl::Buffer terms_buffer{gl::NoCreate}, ndf_table{gl::NoCreate}, cosine_table{gl::NoCreate};
+  std::vector<glm::vec4> ndf_rows;  // ndf_table's contents
 
   std::vector<glm::vec3> triangles;  // world
   scene::Bounds bounds;
@@ -126,6 +127,7 @@ struct TripleProductRenderer::Impl {
   void PlaceVoxelGrid(const scene::GltfScene& model, const RenderOptions& options);
   void UploadShaderTables(const RenderOptions& options);
   const gl::Texture& TextureFor(const scene::GltfScene& model, int image, bool srgb);
+  void UploadSheenTable();
   // The G-buffer and the shading at w × h, the output at out_w × out_h (smaller when supersampled).
   void EnsureTargets(int w, int h, int out_w, int out_h);
   // The shading lanes of a GPU render of `camera`'s size (RenderOptions::shade_lanes), their

@@ -132,9 +132,13 @@ GroundLitMapLayout GroundLitMapLayoutFor(const visibility::VoxelGridSpec& spec, 
 // Bilinear between the texels' centres (texel (i, j) at texels[j · width + i]); 1 outside the grid.
 double SampleGroundLitMap(const GroundLitMapLayout& layout, const std::vector<float>& texels, double x, double z);
 
-// Per material: the BRDF terms of an override, or empty for the glTF metallic-roughness that the
-// G-buffer holds.
-using MaterialTerms = std::vector<std::vector<material::Brdf>>;
+// Per material: the BRDF terms of an override; or, for a glTF material, the metallic-roughness
+// that the G-buffer holds (from_gbuffer) followed by `terms` (its sheen, when it has one).
+struct MaterialTermList {
+  bool from_gbuffer = false;
+  std::vector<material::Brdf> terms;
+};
+using MaterialTerms = std::vector<MaterialTermList>;
 
 // One frame's G-buffer, read back: RGBA float per pixel, top row first (render_gbuffer.frag).
 struct GBuffer {

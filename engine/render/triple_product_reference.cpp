@@ -270,14 +270,13 @@ void AppendMaterialLobes(const ReferenceInputs& in, std::size_t idx, int materia
     term_of->resize(lobes->size(), term);
     on_term(brdf, std::span<const material::Lobe>(lobes->data() + first, lobes->size() - first));
   };
-  const auto& terms = (*in.materials)[static_cast<std::size_t>(material)];
-  if (terms.empty()) {
+  const MaterialTermList& list = (*in.materials)[static_cast<std::size_t>(material)];
+  int term = 0;
+  if (list.from_gbuffer)
     add(material::MetallicRoughness{glm::dvec3(g.base[4 * idx], g.base[4 * idx + 1], g.base[4 * idx + 2]),
                                     g.base[4 * idx + 3], g.normal[4 * idx + 3]},
-        0);
-  } else {
-    for (std::size_t t = 0; t < terms.size(); ++t) add(terms[t], static_cast<int>(t));
-  }
+        term++);
+  for (const material::Brdf& brdf : list.terms) add(brdf, term++);
 }
 
 // render_shade.comp's bounceHit: the first car surface the G-buffer shows behind o + t d, t a

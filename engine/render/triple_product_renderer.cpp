@@ -31,7 +31,8 @@ enum TermType : int {
   kBlinnPhong = 4,
   kWard = 5,
   kCookTorrance = 6,
-  kMetallicRoughness = 7
+  kMetallicRoughness = 7,
+  kSheen = 8
 };
 
 struct GpuTerm {
@@ -67,6 +68,10 @@ GpuTerm ToGpuTerm(const material::Brdf& brdf) {
           t.color = glm::vec4(glm::vec3(m.f0), 0);
           t.params.x = static_cast<float>(m.alpha);
           t.params.y = m.ndf == material::Ndf::kBeckmann ? 1.f : 0.f;
+        } else if constexpr (std::is_same_v<T, material::Sheen>) {
+          t.type.x = kSheen;
+          t.color = glm::vec4(glm::vec3(m.color), 0);
+          t.params.x = static_cast<float>(m.roughness);
         } else {
           t.type.x = kMetallicRoughness;
           t.color = glm::vec4(glm::vec3(m.base_color), 0);
@@ -371,10 +376,22 @@ void TripleProductRenderer::Impl::PlaceVoxelGrid(const scene::GltfScene& model, 
   }
 }
 
+// material::SheenAlbedoTable after the NDF's rows, four values a vec4 (brdf_lobes.glsl's
+// sheenTableAt); made (a fraction of a second) and uploaded only once a material has a sheen.
+void TripleProductRenderer::Impl::UploadSheenTable() {
+  if (ndf_rows.size() > 2 * static_cast<std::size_t>(512)) return;
+  const std::vector<double>& sheen = material::SheenAlbedoTable();
+  std::vector<float> packed(sheen.begin(), sheen.end());
+  packed.resize((packed.size() + 3) / 4 * 4, 0.f);
+  for (std::size_t k = 0; k < packed.size(); k += 4)
+    ndf_rows.emplace_back(packed[k], packed[k + 1], packed[k + 2], packed[k + 3]);
+  ndf_table = MakeBuffer(ndf_rows);
+}
+
 void TripleProductRenderer::Impl::UploadShaderTables(const RenderOptions& options) {
   // Per α ∈ [kMinAlpha, 1]: λα² of the NDF's one-SG fit, then GGX's two SGs (λ_k α², μ_k π α²);
   // brdf_lobes.glsl interpolates them.
-  std::vector<glm::vec4> table(2 * 512);
+  std::vector<glm::vec4> table(2 * 512);  // brdf_lobes.glsl's kNdfTableNodes = 512
   for (std::size_t i = 0; i < table.size() / 2; ++i) {
     const double a =
         material::kMinAlpha + (1.0 - material::kMinAlpha) * static_cast<double>(i) / (table.size() / 2 - 1);
@@ -386,6 +403,7 @@ void TripleProductRenderer::Impl::UploadShaderTables(const RenderOptions& option
                   static_cast<float>(fit.amplitude[0] * kPi * a2), static_cast<float>(fit.amplitude[1] * kPi * a2));
   }
   ndf_table = MakeBuffer(table);
+  ndf_rows = std::move(table);
   // The clamped cosine's two tables interleaved, so that the shader reads both with one vec2.
   const std::vector<double>& cosine = material::ClampedCosineTable();
   const std::size_t block = cosine.size() / 2;
@@ -457,8 +475,8 @@ TripleProductRenderer::TripleProductRenderer(const scene::GltfScene& model, cons
   im.UploadModel(model, world_from_model);
   im.PlaceVoxelGrid(model, options_);
 
+  im.UploadShaderTables(options_);  // before SetMaterials, which may append the sheen's table
   SetMaterials(options_.materials);
-  im.UploadShaderTables(options_);
   SetLighting(lighting::SgLighting{});
 }
 
@@ -478,14 +496,15 @@ int TripleProductRenderer::PrepareShading(const PinholeCamera& camera) {
 
 void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides) {
   Impl& im = *impl_;
-  // Material terms: the glTF metallic-roughness unless an override names the material; each
-  // material's row in the buffer holds its kTermsPerMaterial terms. What it emits: the glTF
+  // Material terms: the glTF metallic-roughness (and its sheen) unless an override names the
+  // material; each material's row in the buffer holds its kTermsPerMaterial terms. What it emits: the glTF
   // material's, none under an override, which replaces the whole material (as the Cycles
   // references' paint overrides do: bench render's paints cover the lamps).
   for (const auto& o : overrides)
     for (const auto& brdf : o.brdfs) material::CheckBrdf(brdf);
   std::vector<GpuTerm> gpu_terms;
   detail::MaterialTerms material_terms;
+  bool sheen = false;
   im.emission.clear();
   for (const auto& mat : im.materials) {
     std::vector<material::Brdf> terms;
@@ -494,15 +513,24 @@ void TripleProductRenderer::SetMaterials(std::vector<MaterialOverride> overrides
     if (terms.size() > static_cast<std::size_t>(kTermsPerMaterial))
       throw Error("material override", "at most " + std::to_string(kTermsPerMaterial) + " BRDF terms");
     std::vector<GpuTerm> row(kTermsPerMaterial);
-    if (terms.empty()) {
+    detail::MaterialTermList list;
+    list.from_gbuffer = terms.empty();
+    if (list.from_gbuffer) {
       row[0].type.x = kGltf;
+      if (mat.sheen_color != glm::vec3(0)) {
+        list.terms.push_back(material::Sheen{glm::dvec3(mat.sheen_color), mat.sheen_roughness});
+        row[1] = ToGpuTerm(list.terms.back());
+      }
     } else {
       for (std::size_t k = 0; k < terms.size(); ++k) row[k] = ToGpuTerm(terms[k]);
+      list.terms = std::move(terms);
     }
-    im.emission.push_back(terms.empty() ? mat.emission() : glm::vec3(0));
+    im.emission.push_back(list.from_gbuffer ? mat.emission() : glm::vec3(0));
     gpu_terms.insert(gpu_terms.end(), row.begin(), row.end());
-    material_terms.push_back(std::move(terms));
+    for (const auto& brdf : list.terms) sheen = sheen || std::holds_alternative<material::Sheen>(brdf);
+    material_terms.push_back(std::move(list));
   }
+  if (sheen) im.UploadSheenTable();
   im.terms_buffer = MakeBuffer(gpu_terms);
   im.material_terms = std::move(material_terms);
   options_.materials = std::move(overrides);

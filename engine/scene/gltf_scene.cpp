@@ -2,6 +2,7 @@
 
 #include <tiny_gltf.h>
 
+#include <spdlog/spdlog.h>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -12,6 +13,8 @@
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 #include <map>
+#include <mutex>
+#include <set>
 #include <type_traits>
 
 #include "core/error.h"
@@ -333,6 +336,10 @@ class SceneBuilder {
 
   GltfScene Build(const std::filesystem::path& path) {
     scene_.source = path;
+    for (const std::string& ext : model_.extensionsUsed)
+      if (ext != "KHR_texture_transform" && ext != "KHR_materials_emissive_strength" && ext != "KHR_materials_sheen" &&
+          ext != "KHR_materials_transmission")
+        scene_.ignored_extensions.push_back(ext);
     for (std::size_t i = 0; i < model_.materials.size(); ++i) scene_.materials.push_back(Material(int(i)));
 
     std::vector<int> roots;
@@ -649,6 +656,21 @@ class SceneBuilder {
       if (!std::isfinite(out.emissive_strength) || out.emissive_strength < 0 || out.emissive_strength > 1e6f)
         reader_.Fail(what + " has an emissive strength outside [0, 1e6]");
     }
+    if (const auto sheen = m.extensions.find("KHR_materials_sheen"); sheen != m.extensions.end()) {
+      const tinygltf::Value& color = sheen->second.Get("sheenColorFactor");
+      if (color.IsArray() && color.ArrayLen() == 3)
+        for (int c = 0; c < 3; ++c) out.sheen_color[c] = float(color.Get(c).GetNumberAsDouble());
+      const tinygltf::Value& roughness = sheen->second.Get("sheenRoughnessFactor");
+      if (roughness.IsNumber()) out.sheen_roughness = float(roughness.GetNumberAsDouble());
+      if (!finite01(out.sheen_color.r) || !finite01(out.sheen_color.g) || !finite01(out.sheen_color.b) ||
+          !finite01(out.sheen_roughness))
+        reader_.Fail(what + " has a sheen factor outside [0, 1]");
+    }
+    if (const auto t = m.extensions.find("KHR_materials_transmission"); t != m.extensions.end()) {
+      const tinygltf::Value& factor = t->second.Get("transmissionFactor");
+      if (factor.IsNumber()) out.transmission = float(factor.GetNumberAsDouble());
+      if (!finite01(out.transmission)) reader_.Fail(what + " has a transmission factor outside [0, 1]");
+    }
     out.double_sided = m.doubleSided;
     if (m.alphaMode == "MASK") out.alpha_mode = PbrMaterial::AlphaMode::kMask;
     if (m.alphaMode == "BLEND") out.alpha_mode = PbrMaterial::AlphaMode::kBlend;
@@ -706,7 +728,19 @@ GltfScene LoadGltfScene(const std::filesystem::path& path, const GltfLoadOptions
     if (ext != "KHR_texture_transform" && ext != "KHR_materials_emissive_strength")
       throw Error(file, "requires the extension " + ext + ", which odvr does not support");
   }
-  return SceneBuilder(model, file, options, warn_line).Build(path);
+  GltfScene scene = SceneBuilder(model, file, options, warn_line).Build(path);
+  if (!scene.ignored_extensions.empty()) {
+    static std::mutex mutex;
+    static std::set<std::string> warned;
+    const std::lock_guard<std::mutex> lock(mutex);
+    if (warned.insert(file).second) {
+      std::string names;
+      for (const std::string& ext : scene.ignored_extensions) names += (names.empty() ? "" : ", ") + ext;
+      spdlog::warn("{}: rendered without {} (those materials are shaded as their metallic-roughness alone)", file,
+                   names);
+    }
+  }
+  return scene;
 }
 
 }  // namespace odvr::scene

@@ -73,6 +73,13 @@ struct PbrMaterial {
   glm::vec3 emissive_factor{0, 0, 0};
   TextureRef emissive_texture;  // sRGB; multiplies the factor (glTF spec)
   float emissive_strength = 1;  // KHR_materials_emissive_strength
+  // KHR_materials_sheen's factors (its textures are not read); a black sheen is none.
+  glm::vec3 sheen_color{0, 0, 0};
+  float sheen_roughness = 0;
+  // KHR_materials_transmission's factor (its texture is not read). The renderer does not see
+  // through: the transmitted share of the dielectric's diffuse layer is taken away (what passes
+  // into a car's glass is mostly lost in its dark interior), its reflection stays.
+  float transmission = 0;
   // The radiance the surface emits, linear, before the emissive texture's factor.
   glm::vec3 emission() const { return emissive_factor * emissive_strength; }
   bool double_sided = false;
@@ -108,6 +115,10 @@ struct GltfScene {
   std::vector<PbrMaterial> materials;
   std::vector<TextureImage> images;
   Bounds bounds;  // of every world-space position; empty for an empty scene
+  // The file's extensionsUsed that odvr renders without (KHR_materials_transmission,
+  // _clearcoat, …): the materials that use them are shaded as their metallic-roughness alone.
+  // LoadGltfScene warns of them once per file and process.
+  std::vector<std::string> ignored_extensions;
 
   std::size_t triangle_count() const;
   std::size_t vertex_count() const;

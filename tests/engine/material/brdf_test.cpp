@@ -663,6 +663,43 @@ TEST(Brdf, WarpAtNormalIncidenceQuartersLambda) {
 }
 
 // CheckBrdf holds every model to its ranges: the bounds pass, a step past them and NaN do not.
+// material::Sheen's albedo table against a Monte-Carlo estimate of ∫ f (n·wi) dwi / colour with
+// the analytic BRDF (uniform hemisphere samples, a fixed seed), from normal to grazing views and
+// from a satin (0.3) to a felt (1); its lobe reflects exactly colour × E × L under a constant
+// light; a zero sheen reflects nothing.
+TEST(Brdf, SheenAlbedoMatchesMonteCarloOfTheBrdf) {
+  const ShadingFrame fr = ShadingFrame::FromNormal({0, 0, 1});
+  std::uint64_t state = 12345;
+  const auto uniform = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(state >> 11) * 0x1.0p-53;
+  };
+  double worst = 0;
+  for (double roughness : {0.3, 0.5, 0.8, 1.0}) {
+    for (double mu : {1.0, 0.7, 0.4, 0.15}) {
+      const glm::dvec3 wo(std::sqrt(1 - mu * mu), 0, mu);
+      const Sheen sheen{glm::dvec3(1.0), roughness};
+      constexpr int kSamples = 400000;
+      double sum = 0;
+      for (int k = 0; k < kSamples; ++k) {
+        const double z = uniform(), phi = 2 * kPi * uniform(), s = std::sqrt(1 - z * z);
+        const glm::dvec3 wi(s * std::cos(phi), s * std::sin(phi), z);
+        sum += Evaluate(sheen, fr, wi, wo).x * z;
+      }
+      const double mc = sum / kSamples * 2 * kPi, table = SheenAlbedo(mu, roughness);
+      std::printf("sheen r %.1f, n.wo %.2f: table %.4f, Monte Carlo %.4f\n", roughness, mu, table, mc);
+      worst = std::max(worst, std::abs(table - mc));
+      const std::vector<Lobe> lobes = Lobes(sheen, fr, wo);
+      ASSERT_EQ(lobes.size(), 1u);
+      EXPECT_TRUE(lobes[0].clamped_cosine);
+      EXPECT_NEAR(lobes[0].weight.x * kPi, table, 1e-12);
+    }
+  }
+  EXPECT_LT(worst, 0.01);
+  EXPECT_TRUE(Lobes(Sheen{glm::dvec3(0), 0.5}, fr, glm::dvec3(0, 0, 1)).empty() ||
+              Lobes(Sheen{glm::dvec3(0), 0.5}, fr, glm::dvec3(0, 0, 1))[0].weight == glm::dvec3(0));
+}
+
 TEST(Brdf, CheckBrdfRefusesEachParameterPastItsBound) {
   const glm::dvec3 one(1), zero(0);
   for (const Brdf& good : {Brdf{Lambertian{one}}, Brdf{Phong{zero, 0}}, Brdf{Phong{one, 1e5}},

@@ -487,6 +487,44 @@ TEST_F(SgShadeGL, EmissiveTextureScalesTheEmissionInEveryShader) {
   sphere_mean(mc.Render(View()), "Monte-Carlo shader");
 }
 
+// KHR_materials_transmission (PbrMaterial::transmission): a fully transmissive dielectric keeps
+// its reflection and loses its diffuse layer, so a green glass sphere renders as a black one
+// would; half transmissive lies between. GPU and CPU alike.
+TEST_F(SgShadeGL, TransmissionTakesTheDiffuseLayerAndKeepsTheReflection) {
+  const auto render = [&](glm::vec3 base, float transmission, ShadeDevice device) {
+    scene::GltfScene s = SphereAndBox();
+    s.materials[0].base_color_factor = glm::vec4(base, 1.f);
+    s.materials[0].metallic_factor = 0.f;
+    s.materials[0].roughness_factor = 0.1f;
+    s.materials[0].transmission = transmission;
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.ground = false;
+    TripleProductRenderer r(s, glm::dmat4(1.0), o);
+    r.SetLighting(SunnySky());
+    return r.Render(View(), device);
+  };
+  const glm::vec3 green(0.3f, 0.8f, 0.3f);
+  for (ShadeDevice device : {ShadeDevice::kGpu, ShadeDevice::kCpu}) {
+    const RenderResult glass = render(green, 1.f, device), black = render(glm::vec3(0.f), 0.f, device);
+    const RenderResult half = render(green, 0.5f, device), opaque = render(green, 0.f, device);
+    double worst = 0, g_half = 0, g_opaque = 0, g_glass = 0;
+    for (std::size_t i = 0; i < glass.car_alpha.size(); ++i) {
+      if (glass.car_alpha[i] <= 0.5f) continue;
+      for (int c = 0; c < 3; ++c)
+        worst = std::max(worst, std::abs(double(glass.car.rgb[3 * i + c]) - black.car.rgb[3 * i + c]));
+      g_glass += glass.car.rgb[3 * i + 1];
+      g_half += half.car.rgb[3 * i + 1];
+      g_opaque += opaque.car.rgb[3 * i + 1];
+    }
+    std::printf("%s: glass vs black worst %.2e; green channel sums glass %.2f, half %.2f, opaque %.2f\n",
+                device == ShadeDevice::kGpu ? "GPU" : "CPU", worst, g_glass, g_half, g_opaque);
+    EXPECT_LT(worst, 1e-5);
+    EXPECT_GT(g_half, g_glass * 1.2);
+    EXPECT_GT(g_opaque, g_half * 1.2);
+  }
+}
+
 TEST_F(SgShadeGL, MoreLevelsAndMoreConesConverge) {
   // Levels: a glossy sphere under a sky with detail on every level; the converged answer uses all
   // five. Leaving levels out loses that detail, so the error to it shrinks as levels are added.

@@ -394,6 +394,33 @@ TEST(GltfScene, EmissionIsTheFactorTimesItsStrengthAndOutOfRangeIsAnError) {
   ExpectLoadError(dir / "strength.gltf", "material 'bright' has an emissive strength outside [0, 1e6]");
 }
 
+// KHR_materials_sheen's factors are read (the fabric of Khronos' ToyCar: red, roughness 0.5), and
+// KHR_materials_transmission's; out of [0, 1] is an error; the extensions odvr renders without
+// are listed.
+TEST(GltfScene, SheenFactorsAreReadAndIgnoredExtensionsListed) {
+  const fs::path dir = TempDir("sheen");
+  json j = QuadGltf();
+  j["materials"] = json::array(
+      {{{"name", "cloth"},
+        {"extensions",
+         {{"KHR_materials_sheen", {{"sheenColorFactor", {1.0, 0.0, 0.0}}, {"sheenRoughnessFactor", 0.5}}}}}},
+       {{"name", "coat"}, {"extensions", {{"KHR_materials_clearcoat", {{"clearcoatFactor", 1.0}}}}}},
+       {{"name", "glass"}, {"extensions", {{"KHR_materials_transmission", {{"transmissionFactor", 0.75}}}}}}});
+  j["extensionsUsed"] = {"KHR_materials_sheen", "KHR_materials_clearcoat", "KHR_materials_transmission"};
+  WriteText(dir / "cloth.gltf", j.dump());
+  const GltfScene s = LoadGltfScene(dir / "cloth.gltf");
+  ASSERT_GE(s.materials.size(), 3u);
+  EXPECT_EQ(s.materials[0].sheen_color, glm::vec3(1.0f, 0.0f, 0.0f));
+  EXPECT_EQ(s.materials[0].sheen_roughness, 0.5f);
+  EXPECT_EQ(s.materials[2].sheen_color, glm::vec3(0.0f));
+  EXPECT_EQ(s.materials[2].transmission, 0.75f);
+  EXPECT_EQ(s.materials[0].transmission, 0.0f);
+  EXPECT_EQ(s.ignored_extensions, std::vector<std::string>{"KHR_materials_clearcoat"});
+  j["materials"][0]["extensions"]["KHR_materials_sheen"]["sheenRoughnessFactor"] = 1.5;
+  WriteText(dir / "rough.gltf", j.dump());
+  ExpectLoadError(dir / "rough.gltf", "material 'cloth' has a sheen factor outside [0, 1]");
+}
+
 TEST(GltfScene, MissingExternalTextureNamesTheTexture) {
   const fs::path src = kData / "gltf/kenney/police/police.glb";
   SKIP_IF_ABSENT(src);
