@@ -268,7 +268,9 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
   for (const SetRow& r : rows) all.push_back(&r);
   std::ostringstream md;
   md << "# Renderer over a generalization set: error distributions\n\n"
-     << "Made by `odvr bench render --set " << o.set_dir << "` on " << machine << ". The set: "
+     << "Made by `odvr bench render --set " << o.set_dir
+     << (o.mc_samples > 0 ? " --mc-samples " + std::to_string(o.mc_samples) + (o.mc_exact ? " --mc-exact" : "") : "")
+     << "` on " << machine << ". The set: "
      << "`tools/blender/render_reference.py --generalization-set` (every map × model × its own materials, a glossy "
         "and a diffuse paint × the catcher under the car or none). Each image rendered once at the default "
         "configuration ("
