@@ -120,7 +120,6 @@ TEST(RunPlayGL, TheDefaultDemoIsTheTenSecondDrive) {
   fs::remove_all(dir);
 }
 
-
 // Nobody holds a key: the video plays and the car rides ahead of the camera (it stood on frame 0
 // until W was pressed); held W stops the car at the end of the reconstructed street (it drove on
 // to 165 m on a 35 m trajectory, 8 px tall).
