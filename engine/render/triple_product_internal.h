@@ -146,7 +146,7 @@ struct GBuffer {
   std::vector<float> position;  // xyz, material index + 1 (0: empty)
   std::vector<float> normal;    // xyz, roughness
   std::vector<float> base;      // rgb, metallic
-  std::vector<float> emission;  // rgb: the radiance the surface emits, 0
+  std::vector<float> emission;  // rgb: the radiance the surface emits, 0 (render_gbuffer.frag's outEmission)
 };
 
 // Per-pixel counters, as render_shade.comp writes them: lobes, cones, triple products, SGs.

@@ -376,10 +376,13 @@ void TripleProductRenderer::Impl::PlaceVoxelGrid(const scene::GltfScene& model, 
   }
 }
 
+// The NDF table's nodes over α (brdf_lobes.glsl's kNdfTableNodes, which must equal it).
+constexpr int kNdfTableNodes = 512;
+
 // material::SheenAlbedoTable after the NDF's rows, four values a vec4 (brdf_lobes.glsl's
 // sheenTableAt); made (a fraction of a second) and uploaded only once a material has a sheen.
 void TripleProductRenderer::Impl::UploadSheenTable() {
-  if (ndf_rows.size() > 2 * static_cast<std::size_t>(512)) return;
+  if (ndf_rows.size() > 2 * static_cast<std::size_t>(kNdfTableNodes)) return;
   const std::vector<double>& sheen = material::SheenAlbedoTable();
   std::vector<float> packed(sheen.begin(), sheen.end());
   packed.resize((packed.size() + 3) / 4 * 4, 0.f);
@@ -391,7 +394,7 @@ void TripleProductRenderer::Impl::UploadSheenTable() {
 void TripleProductRenderer::Impl::UploadShaderTables(const RenderOptions& options) {
   // Per α ∈ [kMinAlpha, 1]: λα² of the NDF's one-SG fit, then GGX's two SGs (λ_k α², μ_k π α²);
   // brdf_lobes.glsl interpolates them.
-  std::vector<glm::vec4> table(2 * 512);  // brdf_lobes.glsl's kNdfTableNodes = 512
+  std::vector<glm::vec4> table(2 * static_cast<std::size_t>(kNdfTableNodes));
   for (std::size_t i = 0; i < table.size() / 2; ++i) {
     const double a =
         material::kMinAlpha + (1.0 - material::kMinAlpha) * static_cast<double>(i) / (table.size() / 2 - 1);

@@ -656,19 +656,28 @@ class SceneBuilder {
       if (!std::isfinite(out.emissive_strength) || out.emissive_strength < 0 || out.emissive_strength > 1e6f)
         reader_.Fail(what + " has an emissive strength outside [0, 1e6]");
     }
+    // An extension's factor: absent keeps the default, anything but a number is an error.
+    const auto read_factor = [&](const tinygltf::Value& ext, const std::string& key, float* value) {
+      if (!ext.Has(key)) return;
+      if (!ext.Get(key).IsNumber()) reader_.Fail(what + "'s " + key + " is not a number");
+      *value = float(ext.Get(key).GetNumberAsDouble());
+    };
     if (const auto sheen = m.extensions.find("KHR_materials_sheen"); sheen != m.extensions.end()) {
-      const tinygltf::Value& color = sheen->second.Get("sheenColorFactor");
-      if (color.IsArray() && color.ArrayLen() == 3)
-        for (int c = 0; c < 3; ++c) out.sheen_color[c] = float(color.Get(c).GetNumberAsDouble());
-      const tinygltf::Value& roughness = sheen->second.Get("sheenRoughnessFactor");
-      if (roughness.IsNumber()) out.sheen_roughness = float(roughness.GetNumberAsDouble());
+      if (sheen->second.Has("sheenColorFactor")) {
+        const tinygltf::Value& color = sheen->second.Get("sheenColorFactor");
+        if (!color.IsArray() || color.ArrayLen() != 3) reader_.Fail(what + "'s sheenColorFactor is not three numbers");
+        for (int c = 0; c < 3; ++c) {
+          if (!color.Get(c).IsNumber()) reader_.Fail(what + "'s sheenColorFactor is not three numbers");
+          out.sheen_color[c] = float(color.Get(c).GetNumberAsDouble());
+        }
+      }
+      read_factor(sheen->second, "sheenRoughnessFactor", &out.sheen_roughness);
       if (!finite01(out.sheen_color.r) || !finite01(out.sheen_color.g) || !finite01(out.sheen_color.b) ||
           !finite01(out.sheen_roughness))
         reader_.Fail(what + " has a sheen factor outside [0, 1]");
     }
     if (const auto t = m.extensions.find("KHR_materials_transmission"); t != m.extensions.end()) {
-      const tinygltf::Value& factor = t->second.Get("transmissionFactor");
-      if (factor.IsNumber()) out.transmission = float(factor.GetNumberAsDouble());
+      read_factor(t->second, "transmissionFactor", &out.transmission);
       if (!finite01(out.transmission)) reader_.Fail(what + " has a transmission factor outside [0, 1]");
     }
     out.double_sided = m.doubleSided;

@@ -696,8 +696,8 @@ TEST(Brdf, SheenAlbedoMatchesMonteCarloOfTheBrdf) {
     }
   }
   EXPECT_LT(worst, 0.01);
-  EXPECT_TRUE(Lobes(Sheen{glm::dvec3(0), 0.5}, fr, glm::dvec3(0, 0, 1)).empty() ||
-              Lobes(Sheen{glm::dvec3(0), 0.5}, fr, glm::dvec3(0, 0, 1))[0].weight == glm::dvec3(0));
+  for (const Lobe& lobe : Lobes(Sheen{glm::dvec3(0), 0.5}, fr, glm::dvec3(0, 0, 1)))
+    EXPECT_EQ(lobe.weight, glm::dvec3(0));
 }
 
 TEST(Brdf, CheckBrdfRefusesEachParameterPastItsBound) {

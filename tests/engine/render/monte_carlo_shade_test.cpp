@@ -123,8 +123,9 @@ TEST_F(MonteCarloShadeGL, SheenLobeMatchesTheMonteCarloOfItsBrdf) {
               ce, mc_e);
   EXPECT_NEAR(gc, cc, 1e-3 * gc);
   EXPECT_NEAR(ge, ce, 1e-3 * ge);
-  EXPECT_NEAR(gc / mc_c, 1.0, 0.05);
-  EXPECT_NEAR(ge / mc_e, 1.0, 0.05);
+  // 256 samples of a smooth integrand, averaged over hundreds of pixels: a 2 % gap is the lobe's.
+  EXPECT_NEAR(gc / mc_c, 1.0, 0.02);
+  EXPECT_NEAR(ge / mc_e, 1.0, 0.02);
   EXPECT_GT(mc_e, 2.0 * mc_c) << "a sheen is brightest at grazing views";
 }
 

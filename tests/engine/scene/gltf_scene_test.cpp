@@ -419,6 +419,17 @@ TEST(GltfScene, SheenFactorsAreReadAndIgnoredExtensionsListed) {
   j["materials"][0]["extensions"]["KHR_materials_sheen"]["sheenRoughnessFactor"] = 1.5;
   WriteText(dir / "rough.gltf", j.dump());
   ExpectLoadError(dir / "rough.gltf", "material 'cloth' has a sheen factor outside [0, 1]");
+  j["materials"][0]["extensions"]["KHR_materials_sheen"]["sheenRoughnessFactor"] = "rough";
+  WriteText(dir / "word.gltf", j.dump());
+  ExpectLoadError(dir / "word.gltf", "material 'cloth''s sheenRoughnessFactor is not a number");
+  j["materials"][0]["extensions"]["KHR_materials_sheen"]["sheenRoughnessFactor"] = 0.5;
+  j["materials"][0]["extensions"]["KHR_materials_sheen"]["sheenColorFactor"] = {1.0, 0.0};
+  WriteText(dir / "two.gltf", j.dump());
+  ExpectLoadError(dir / "two.gltf", "material 'cloth''s sheenColorFactor is not three numbers");
+  j["materials"][0]["extensions"]["KHR_materials_sheen"]["sheenColorFactor"] = {1.0, 0.0, 0.0};
+  j["materials"][2]["extensions"]["KHR_materials_transmission"]["transmissionFactor"] = 2.0;
+  WriteText(dir / "glass.gltf", j.dump());
+  ExpectLoadError(dir / "glass.gltf", "material 'glass' has a transmission factor outside [0, 1]");
 }
 
 TEST(GltfScene, MissingExternalTextureNamesTheTexture) {
