@@ -84,7 +84,7 @@ if [ "$quick" = stages ]; then
   step player_live 60 "$odvr" bench player --live --frames 30 --out "$results/player_live.md"
   # The GPU stitch's 12.3 ms a frame in parts: upload, passes (GL timestamps), read-back.
   step stitch 30 "$odvr" bench stitch --gpu --repeats 5 --out "$results/stitch"
-  step tests_render 150 "$work/engine_gl_tests" --gtest_filter='SgShadeGL*:PeakShadowGL*:GroundShadowGL*:MonteCarloShadeGL*:ShadingRateGL*:CompositeGL*:CountsGL*:HardCasesGL*:CyclesReference*GL*'
+  step tests_render 150 "$work/engine_gl_tests" --gtest_filter='SgShadePassGL*:PeakShadowGL*:GroundShadowGL*:MonteCarloShadePassGL*:ShadingRateGL*:CompositePassGL*:CountsPassGL*:ResolvePassGL*:GbufferPassGL*:VoxelizePassGL*:HardCasesGL*:CyclesReference*GL*'
   step light_park 60 "$odvr" bench light --gpu --widths 2048 --max-levels 5 --no-least-squares \
     --repeats 9 --min-time-ms 200 --out "$results/light_park" "$env/park.exr"
   # The 1280x720 row timed both as the bench renders (read back) and as the window player does.

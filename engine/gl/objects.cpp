@@ -28,7 +28,7 @@ Buffer& Buffer::SubData(std::size_t offset, std::size_t bytes, const void* data)
   return *this;
 }
 
-Buffer& Buffer::BindBase(GLenum target, GLuint index) {
+const Buffer& Buffer::BindBase(GLenum target, GLuint index) const {
   glBindBufferBase(target, index, id_);
   return *this;
 }
@@ -99,12 +99,12 @@ Texture& Texture::GenerateMipmaps() {
   return *this;
 }
 
-Texture& Texture::BindUnit(GLuint unit) {
+const Texture& Texture::BindUnit(GLuint unit) const {
   glBindTextureUnit(unit, id_);
   return *this;
 }
 
-Texture& Texture::BindImage(GLuint unit, GLenum access, int level) {
+const Texture& Texture::BindImage(GLuint unit, GLenum access, int level) const {
   glBindImageTexture(unit, id_, level, target_ == GL_TEXTURE_3D ? GL_TRUE : GL_FALSE, 0, access, internal_format_);
   return *this;
 }
@@ -218,7 +218,7 @@ VertexArray& VertexArray::SetIndexBuffer(const Buffer& buffer) {
   return *this;
 }
 
-VertexArray& VertexArray::Bind() {
+const VertexArray& VertexArray::Bind() const {
   glBindVertexArray(id_);
   return *this;
 }

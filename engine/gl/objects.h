@@ -62,7 +62,8 @@ class Buffer : public Object<Buffer> {
     return SetData(std::span<const T>(data));
   }
   Buffer& SubData(std::size_t offset, std::size_t bytes, const void* data);
-  Buffer& BindBase(GLenum target, GLuint index);
+  // Binding changes the context's state, not the object's: const.
+  const Buffer& BindBase(GLenum target, GLuint index) const;
   std::size_t size() const { return size_; }
 
   // Readback for tests and CPU consumers: waits for the GPU.
@@ -94,8 +95,8 @@ class Texture : public Object<Texture> {
   Texture& SetFilter(GLenum min_filter, GLenum mag_filter);
   Texture& SetWrap(GLenum wrap_s, GLenum wrap_t, GLenum wrap_r = GL_CLAMP_TO_EDGE);
   Texture& GenerateMipmaps();
-  Texture& BindUnit(GLuint unit);
-  Texture& BindImage(GLuint unit, GLenum access, int level = 0);
+  const Texture& BindUnit(GLuint unit) const;
+  const Texture& BindImage(GLuint unit, GLenum access, int level = 0) const;
 
   // Whole-level readback (glGetTextureImage): `components` values of T per texel.
   template <class T>
@@ -166,7 +167,7 @@ class VertexArray : public Object<VertexArray> {
   VertexArray& AddFloatAttribute(GLuint location, const Buffer& buffer, GLuint binding, int components,
                                  std::size_t offset, std::size_t stride);
   VertexArray& SetIndexBuffer(const Buffer& buffer);
-  VertexArray& Bind();
+  const VertexArray& Bind() const;
 };
 
 class Program : public Object<Program> {

@@ -1,7 +1,6 @@
 #pragma once
-// Internals shared by the GPU path (triple_product_renderer.cpp and the files of its passes,
-// triple_product_impl.h) and the CPU reference (triple_product_reference.cpp) of
-// TripleProductRenderer. Not part of the engine's API.
+// Internals shared by TripleProductRenderer's passes (engine/render/passes/) and its CPU
+// reference (triple_product_reference.cpp). Not part of the engine's API.
 #include <algorithm>
 #include <cstdint>
 #include <glm/mat3x3.hpp>
@@ -46,13 +45,6 @@ struct CountSums {
 };
 
 constexpr int kCountTotals = 15;  // render_counts.comp's per-group totals
-
-// RenderOptions::read_layers off: `program` (render_counts.comp) sums the per-sample counts, the
-// car's coverage taken from `sample_car`'s alpha (the shaded samples' layer), each work group into
-// its slot of `group_totals` (made or grown here); only those slots come back. pixel_flags:
-// adaptive supersampling's flags (pixels of them), counted where 1; null otherwise.
-CountSums SumCountsOnGpu(gl::Program& program, gl::Buffer& counts, gl::Buffer* pixel_flags, gl::Buffer& group_totals,
-                         gl::Texture& sample_car, int samples_width, int samples_height, int pixels);
 
 // The lighting as the shading stage reads it: SRBFs by global index (lighting/overlap_bins.h),
 // amplitude 0 where the model kept none, axes already rotated into the world.

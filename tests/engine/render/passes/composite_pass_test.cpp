@@ -1,12 +1,14 @@
-// The composite pass (render_composite.comp): read back alone it is the same image, with the same
-// counts; the background keeps its own rotation and stands alone without a model.
-#include "engine/render/triple_product_renderer.h"
+// The composite pass (render_composite.comp): on its own it is the CPU's composite of the same
+// layers; read back alone it is the same image, with the same counts; the background keeps its own
+// rotation and stands alone without a model.
+#include "engine/render/passes/composite_pass.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <vector>
 
 #include "core/error.h"
@@ -23,7 +25,7 @@ using odvr::testing::kW;
 using odvr::testing::SphereAndBox;
 using odvr::testing::SunnySky;
 using odvr::testing::View;
-using CompositeGL = odvr::testing::GlTest;
+using CompositePassGL = odvr::testing::GlTest;
 
 // RenderOptions::supersample with every sample shaded (supersample_contrast 0): the GPU renders
 // k² samples per pixel and resolves them (render_resolve.comp). Its output must be the same
@@ -31,9 +33,80 @@ using CompositeGL = odvr::testing::GlTest;
 // (detail::ResolveSupersampled); the CPU shading path must agree as the unsupersampled paths do;
 // and the car's silhouette must come out with fractional coverage (point sampling gives 0 or 1)
 // while the covered area stays the same.
+// The pass alone on random car and shadow layers: the GPU's composite is the CPU's over an
+// equirectangular background (bilinear on both, so within the GPU's filtering precision) and
+// equal to it over an image; and it is (1 − α) · background · shadow + α · car.
+TEST_F(CompositePassGL, GpuCompositeIsTheCpuReferenceOfTheSameLayers) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> unit(0.f, 1.f);
+  const RenderOptions o;
+  const RenderFrame fr = RenderFrame::Make(o, View(), ShadeDevice::kGpu, true, {0, 0});
+  RenderTargets targets;
+  targets.Ensure(fr);
+  RenderResult layers;
+  layers.car = sphere::EquirectImage(fr.w, fr.h, 0.f);
+  layers.shadow = sphere::EquirectImage(fr.w, fr.h, 1.f);
+  layers.car_alpha.assign(fr.pixels, 0.f);
+  layers.ground_mask.assign(fr.pixels, 0.f);
+  std::vector<float> car(4 * fr.pixels), shadow(4 * fr.pixels);
+  for (std::size_t i = 0; i < fr.pixels; ++i) {
+    layers.car_alpha[i] = i % 3 == 0 ? 0.f : unit(rng);
+    for (int c = 0; c < 3; ++c) {
+      car[4 * i + c] = layers.car.rgb[3 * i + c] = 3 * unit(rng);
+      shadow[4 * i + c] = layers.shadow.rgb[3 * i + c] = 0.2f + 0.8f * unit(rng);
+    }
+    car[4 * i + 3] = layers.car_alpha[i];
+    shadow[4 * i + 3] = 0;
+  }
+  targets.car_layer.Upload2D(GL_RGBA, GL_FLOAT, car.data());
+  targets.shadow_layer.Upload2D(GL_RGBA, GL_FLOAT, shadow.data());
+  sphere::EquirectImage pano(128, 64);
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 128; ++x)
+      for (int c = 0; c < 3; ++c)
+        pano.at(x, y)[c] = 0.2f + 0.15f * static_cast<float>(std::sin(0.3 * x + c) + std::cos(0.2 * y));
+  sphere::EquirectImage image(fr.w, fr.h);
+  for (float& v : image.rgb) v = unit(rng);
+  const glm::dmat3 env_from_world(glm::dvec3(0, 0, 1), glm::dvec3(0, 1, 0), glm::dvec3(-1, 0, 0));
+  CompositePass pass;
+  for (const bool is_image : {false, true}) {
+    SCOPED_TRACE(is_image ? "image" : "equirect");
+    if (is_image) {
+      pass.SetImage(image);
+    } else {
+      pass.SetEquirect(pano);
+    }
+    pass.RunOnGpu(fr, env_from_world, targets);
+    RenderResult cpu = layers;
+    pass.RunOnCpu(fr, env_from_world, &cpu);
+    const std::vector<float> gpu = targets.composite_layer.Read<float>(GL_RGBA, GL_FLOAT, 4);
+    const std::vector<float> gpu_background = targets.background_layer.Read<float>(GL_RGBA, GL_FLOAT, 4);
+    double worst = 0, worst_background = 0, formula = 0;
+    for (std::size_t i = 0; i < fr.pixels; ++i)
+      for (int c = 0; c < 3; ++c) {
+        worst = std::max(worst, std::abs(double(gpu[4 * i + c]) - cpu.composite.rgb[3 * i + c]));
+        worst_background =
+            std::max(worst_background, std::abs(double(gpu_background[4 * i + c]) - cpu.background.rgb[3 * i + c]));
+        const double a = layers.car_alpha[i];
+        const double expected =
+            (1 - a) * cpu.background.rgb[3 * i + c] * layers.shadow.rgb[3 * i + c] + a * layers.car.rgb[3 * i + c];
+        formula = std::max(formula, std::abs(expected - cpu.composite.rgb[3 * i + c]));
+      }
+    EXPECT_LT(worst, is_image ? 1e-6 : 0.01);
+    EXPECT_LT(worst_background, is_image ? 1e-6 : 0.01);
+    EXPECT_LT(formula, 1e-5);
+    if (is_image) {
+      EXPECT_EQ(cpu.background.rgb, image.rgb);
+    }
+  }
+  pass.SetImage(sphere::EquirectImage(10, 10, 0.f));
+  EXPECT_THROW(pass.CheckOutputSize(fr.w, fr.h), Error);
+  EXPECT_NO_THROW(pass.CheckOutputSize(10, 10));
+}
+
 // RenderOptions::read_layers off (a player's renders): the composite alone comes back, and the
 // counts summed on the GPU are the CPU's sums of the same samples, for every supersampling mode.
-TEST_F(CompositeGL, CompositeOnlyReadsBackTheSameImageAndCounts) {
+TEST_F(CompositePassGL, CompositeOnlyReadsBackTheSameImageAndCounts) {
   struct Mode {
     int k;
     double contrast;
@@ -96,7 +169,7 @@ TEST_F(CompositeGL, CompositeOnlyReadsBackTheSameImageAndCounts) {
 // A player's background: one panorama turned by its own rotation (not the lighting's), sampled by
 // the GPU composite as the CPU path samples it; without the model, the composite is that
 // background alone.
-TEST_F(CompositeGL, BackgroundEquirectHasItsOwnRotationAndCanStandAlone) {
+TEST_F(CompositePassGL, BackgroundEquirectHasItsOwnRotationAndCanStandAlone) {
   RenderOptions o;
   o.voxel_resolution = 64;
   TripleProductRenderer r(SphereAndBox(), glm::dmat4(1.0), o);
@@ -141,7 +214,7 @@ TEST_F(CompositeGL, BackgroundEquirectHasItsOwnRotationAndCanStandAlone) {
               moved, expected);
 }
 
-TEST_F(CompositeGL, HardCaseEmptySceneRendersTheBackground) {
+TEST_F(CompositePassGL, HardCaseEmptySceneRendersTheBackground) {
   RenderOptions o;
   o.voxel_resolution = 64;
   TripleProductRenderer r(scene::GltfScene{}, glm::dmat4(1.0), o);

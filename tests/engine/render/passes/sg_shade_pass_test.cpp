@@ -43,9 +43,9 @@ using odvr::testing::SphereAndBox;
 using odvr::testing::SpherePrimitive;
 using odvr::testing::SunnySky;
 using odvr::testing::View;
-using SgShadeGL = odvr::testing::GlTest;
+using SgShadePassGL = odvr::testing::GlTest;
 
-TEST_F(SgShadeGL, GpuMatchesCpuReference) {
+TEST_F(SgShadePassGL, GpuMatchesCpuReference) {
   RenderOptions o;
   o.voxel_resolution = 64;
   TripleProductRenderer r(SphereAndBox(), glm::dmat4(1.0), o);
@@ -90,7 +90,7 @@ TEST_F(SgShadeGL, GpuMatchesCpuReference) {
 // against the CPU reference, which builds its lobes with material::AppendLobes itself.
 // RenderOptions::depth_per_lobe: a bin's list goes as deep as the sharpest lobe it serves; each
 // lobe taking only the levels the depth rule gives its own λ drops SGs it cannot show.
-TEST_F(SgShadeGL, DepthPerLobeDropsTheLevelsALobeCannotShow) {
+TEST_F(SgShadePassGL, DepthPerLobeDropsTheLevelsALobeCannotShow) {
   RenderResult result[2][2];  // [depth_per_lobe][gpu]
   for (bool depth : {false, true}) {
     RenderOptions o;
@@ -115,7 +115,7 @@ TEST_F(SgShadeGL, DepthPerLobeDropsTheLevelsALobeCannotShow) {
   EXPECT_LT(change.mean_rel, 0.01);
 }
 
-TEST_F(SgShadeGL, GpuMatchesCpuReferenceForEveryLobeMode) {
+TEST_F(SgShadePassGL, GpuMatchesCpuReferenceForEveryLobeMode) {
   for (const auto warp : {material::WarpMode::kIsotropic, material::WarpMode::kAnisotropicSplit})
     for (const auto cosine : {material::CosineTerm::kAtLobeAxis, material::CosineTerm::kAsSg}) {
       if (warp == RenderOptions{}.lobes.warp && cosine == RenderOptions{}.lobes.cosine) continue;  // GpuMatchesCpu…
@@ -145,7 +145,7 @@ TEST_F(SgShadeGL, GpuMatchesCpuReferenceForEveryLobeMode) {
 // the one-invocation picture (float sums in another order) and the same counts, with a peak
 // (its cone and integrals summed across lanes), plainly and with adaptive supersampling (the
 // listed samples' pass).
-TEST_F(SgShadeGL, ShadeLanesGiveTheSamePictureAndCounts) {
+TEST_F(SgShadePassGL, ShadeLanesGiveTheSamePictureAndCounts) {
   PinholeCamera view = View();  // half size: the test renders six times
   view.width /= 2;
   view.height /= 2;
@@ -192,7 +192,7 @@ TEST_F(SgShadeGL, ShadeLanesGiveTheSamePictureAndCounts) {
 
 // Each render says the lanes it shaded with: the rule's pick for its first pass on this device
 // (the pixels at rate 1, the 2×2 blocks at rate 2), what it was told otherwise, 0 on the CPU.
-TEST_F(SgShadeGL, ShadeLanesArePickedPerRender) {
+TEST_F(SgShadePassGL, ShadeLanesArePickedPerRender) {
   const bool software = odvr::gl::CurrentRendererIsSoftware();
   for (int rate : {1, 2}) {
     RenderOptions o;
@@ -225,7 +225,7 @@ TEST_F(SgShadeGL, ShadeLanesArePickedPerRender) {
 // from a camera 10° above it. The view mirrored about those normals dives 32° below the top, into
 // the slab; tilted toward the face just enough, it leaves at a grazing height and sees a light
 // 3° above the horizon beyond the slab. The GPU and the CPU shade the same G-buffer.
-TEST_F(SgShadeGL, ValidReflectionNormalsKeepTheMirroredViewAboveTheFace) {
+TEST_F(SgShadePassGL, ValidReflectionNormalsKeepTheMirroredViewAboveTheFace) {
   scene::GltfScene slab;
   slab.materials = {Pbr("slab", {0.8f, 0.8f, 0.8f}, 0.f, 0.5f)};
   scene::ScenePrimitive box = BoxPrimitive({-1.f, 0.48f, -1.f}, {1.f, 0.50f, 1.f}, 0);
@@ -264,7 +264,7 @@ TEST_F(SgShadeGL, ValidReflectionNormalsKeepTheMirroredViewAboveTheFace) {
 // the bounce the floor reads black; with it, the floor's lost light is the wall's radiance, which
 // the G-buffer march finds: the same floor under an open sky of that radiance reads the same. GPU
 // and CPU alike.
-TEST_F(SgShadeGL, SpecularBounceShowsAnEmissiveWallInAMirrorFloor) {
+TEST_F(SgShadePassGL, SpecularBounceShowsAnEmissiveWallInAMirrorFloor) {
   const float radiance = 3.f;
   const auto scene = [&](bool wall) {
     scene::GltfScene s;
@@ -305,7 +305,7 @@ TEST_F(SgShadeGL, SpecularBounceShowsAnEmissiveWallInAMirrorFloor) {
   }
 }
 
-TEST_F(SgShadeGL, FurnaceLambertianSphereUnderConstantLight) {
+TEST_F(SgShadePassGL, FurnaceLambertianSphereUnderConstantLight) {
   RenderOptions o;
   o.voxel_resolution = 64;
   o.ground = false;
@@ -341,7 +341,7 @@ TEST_F(SgShadeGL, FurnaceLambertianSphereUnderConstantLight) {
 // A white furnace with a recess: an L of a floor slab and a wall, albedo 1, under a constant
 // sky. Light is conserved, so every surface reads the sky's radiance, the inner corner too; the
 // ambient bounce gives back what the cones lose to the car itself, without it the corner is dark.
-TEST_F(SgShadeGL, AmbientBounceKeepsAWhiteFurnaceCornerAtTheSkysRadiance) {
+TEST_F(SgShadePassGL, AmbientBounceKeepsAWhiteFurnaceCornerAtTheSkysRadiance) {
   scene::GltfScene corner;
   corner.materials = {Pbr("white", {1.f, 1.f, 1.f}, 0.f, 1.f)};
   corner.primitives.push_back(BoxPrimitive({-1.0f, 0.5f, -1.0f}, {1.0f, 0.7f, 1.0f}, 0));   // floor slab
@@ -385,7 +385,7 @@ TEST_F(SgShadeGL, AmbientBounceKeepsAWhiteFurnaceCornerAtTheSkysRadiance) {
   }
 }
 
-TEST_F(SgShadeGL, EmissiveMaterialAddsItsRadianceInEveryShader) {
+TEST_F(SgShadePassGL, EmissiveMaterialAddsItsRadianceInEveryShader) {
   // A glTF emissive material (the demo car's lamps) adds its radiance to what the surface
   // reflects, unshadowed: in the dark a lamp reads its emission exactly (the SG shader, its CPU
   // reference and the Monte-Carlo shader), under light the difference an emissive sphere makes is
@@ -447,7 +447,7 @@ TEST_F(SgShadeGL, EmissiveMaterialAddsItsRadianceInEveryShader) {
 // is mostly black (ToyCar's lamps) must not let the factor light the whole body. One texel
 // (188, 128, 64) decodes to (0.5029, 0.2158, 0.0513); in the dark the sphere reads twice that in
 // the SG shader, its CPU reference and the Monte-Carlo shader alike.
-TEST_F(SgShadeGL, EmissiveTextureScalesTheEmissionInEveryShader) {
+TEST_F(SgShadePassGL, EmissiveTextureScalesTheEmissionInEveryShader) {
   scene::GltfScene lit = SphereAndBox();
   scene::TextureImage texel;
   texel.name = "lamp texel";
@@ -490,7 +490,7 @@ TEST_F(SgShadeGL, EmissiveTextureScalesTheEmissionInEveryShader) {
 // KHR_materials_transmission (PbrMaterial::transmission): a fully transmissive dielectric keeps
 // its reflection and loses its diffuse layer, so a green glass sphere renders as a black one
 // would; half transmissive lies between. GPU and CPU alike.
-TEST_F(SgShadeGL, TransmissionTakesTheDiffuseLayerAndKeepsTheReflection) {
+TEST_F(SgShadePassGL, TransmissionTakesTheDiffuseLayerAndKeepsTheReflection) {
   const auto render = [&](glm::vec3 base, float transmission, ShadeDevice device) {
     scene::GltfScene s = SphereAndBox();
     s.materials[0].base_color_factor = glm::vec4(base, 1.f);
@@ -525,7 +525,7 @@ TEST_F(SgShadeGL, TransmissionTakesTheDiffuseLayerAndKeepsTheReflection) {
   }
 }
 
-TEST_F(SgShadeGL, MoreLevelsAndMoreConesConverge) {
+TEST_F(SgShadePassGL, MoreLevelsAndMoreConesConverge) {
   // Levels: a glossy sphere under a sky with detail on every level; the converged answer uses all
   // five. Leaving levels out loses that detail, so the error to it shrinks as levels are added.
   scene::GltfScene s;

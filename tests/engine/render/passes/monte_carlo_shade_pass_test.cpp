@@ -26,12 +26,12 @@ using odvr::testing::LambertSphere;
 using odvr::testing::Luma;
 using odvr::testing::MeanCarLuma;
 using odvr::testing::Pbr;
-using MonteCarloShadeGL = odvr::testing::GlTest;
+using MonteCarloShadePassGL = odvr::testing::GlTest;
 
 // The Monte-Carlo baseline (RenderOptions::monte_carlo_samples) in a furnace: a Lambertian sphere
 // under a constant map reflects exactly albedo × L (an unbiased estimator's mean over the sphere,
 // within its noise), and so does the SG renderer, whose diffuse lobe is the clamped cosine.
-TEST_F(MonteCarloShadeGL, MonteCarloShaderConvergesInAFurnace) {
+TEST_F(MonteCarloShadePassGL, MonteCarloShaderConvergesInAFurnace) {
   const PinholeCamera cam = PinholeCamera::LookAt({0, 1.0, 3.0}, {0, 1.0, 0}, 30, kW, kH);
   const sphere::EquirectImage map(64, 32, 2.f);
   RenderOptions o;
@@ -75,7 +75,7 @@ TEST_F(MonteCarloShadeGL, MonteCarloShaderConvergesInAFurnace) {
 // and the CPU reference's lobe (the albedo table's clamped cosine) against the Monte-Carlo
 // shader, which evaluates the Charlie BRDF itself; all three within the estimator's noise, and
 // brighter at the silhouette (grazing views) than at the centre, as a sheen is.
-TEST_F(MonteCarloShadeGL, SheenLobeMatchesTheMonteCarloOfItsBrdf) {
+TEST_F(MonteCarloShadePassGL, SheenLobeMatchesTheMonteCarloOfItsBrdf) {
   const PinholeCamera cam = PinholeCamera::LookAt({0, 1.0, 3.0}, {0, 1.0, 0}, 30, kW, kH);
   const scene::GltfScene sphere = LambertSphere();
   RenderOptions o;
@@ -133,7 +133,7 @@ TEST_F(MonteCarloShadeGL, SheenLobeMatchesTheMonteCarloOfItsBrdf) {
 // triangles. Under a box floating 0.3 m up in a constant sky, the ground's shadow ratio is one
 // minus the box's bottom face's form factor (a point below a parallel rectangle, in closed form);
 // the exact rays must reach it within their noise, the voxel rays are printed beside for scale.
-TEST_F(MonteCarloShadeGL, MonteCarloExactVisibilityMatchesTheFormFactorUnderABox) {
+TEST_F(MonteCarloShadePassGL, MonteCarloExactVisibilityMatchesTheFormFactorUnderABox) {
   scene::GltfScene box;
   box.materials = {Pbr("body", {0.4f, 0.4f, 0.45f}, 0.f, 0.6f)};
   box.primitives.push_back(BoxPrimitive({-1.0f, 0.3f, -0.5f}, {1.0f, 1.2f, 0.5f}, 0));
