@@ -1,6 +1,6 @@
 #version 450
 // G-buffer of the triple-product renderer: world position and material index + 1 (0 = empty),
-// shading normal (normal map applied when the material has one and the mesh has tangents) and
+// shading normal (normal map applied when the material has one) and
 // perceptual roughness, linear base colour and metallic, and the radiance the surface emits (glTF:
 // emissive factor × strength × emissive texture).
 in vec3 vPosition;
@@ -66,6 +66,34 @@ vec3 validReflectionNormal(vec3 ng, vec3 wo, vec3 n) {
   return dot(h, h) > 1e-12 ? normalize(h) : ng;
 }
 
+// The normal map's tangent frame at this pixel: the mesh's tangents where it has them; otherwise the
+// frame its texture coordinates give the surface, as glTF asks of a viewer when tangents are
+// missing: t along ∂p/∂u (solved from the pixel's derivatives of p and uv), b = n × t pointing
+// against ∂p/∂v (the map's +y is −v; a mirrored layout flips it, as MikkTSpace's w does).
+// False where the coordinates give no frame (degenerate, or constant uv).
+bool normalMapFrame(vec3 n, out vec3 t, out vec3 b) {
+  t = vec3(0.0);
+  b = vec3(0.0);
+  if (dot(vTangent.xyz, vTangent.xyz) > 1e-12) {
+    t = normalize(vTangent.xyz - dot(vTangent.xyz, n) * n);
+    b = cross(n, t) * (vTangent.w < 0.0 ? -1.0 : 1.0);
+    return true;
+  }
+  vec2 uv = texUv(2);
+  vec3 dp1 = dFdx(vPosition), dp2 = dFdy(vPosition);
+  vec2 duv1 = dFdx(uv), duv2 = dFdy(uv);
+  float det = duv1.x * duv2.y - duv1.y * duv2.x;
+  if (!(abs(det) > 1e-20)) return false;
+  vec3 dpdu = (dp1 * duv2.y - dp2 * duv1.y) / det;
+  vec3 dpdv = (dp2 * duv1.x - dp1 * duv2.x) / det;
+  vec3 across = dpdu - dot(dpdu, n) * n;
+  if (!(dot(across, across) > 1e-24)) return false;
+  t = normalize(across);
+  b = cross(n, t);
+  if (dot(b, dpdv) > 0.0) b = -b;
+  return true;
+}
+
 void main() {
   vec4 base = uBaseColorFactor;
   if (uTexUse[0].x != 0) base *= texture(uBaseColorTex, texUv(0));
@@ -83,9 +111,8 @@ void main() {
   if (!(dot(n, n) > 1e-12)) n = face;
   if (!(dot(n, n) > 1e-20)) n = vec3(0, 1, 0);
   n = normalize(n);
-  if (uTexUse[2].x != 0 && dot(vTangent.xyz, vTangent.xyz) > 1e-12) {
-    vec3 t = normalize(vTangent.xyz - dot(vTangent.xyz, n) * n);
-    vec3 b = cross(n, t) * (vTangent.w < 0.0 ? -1.0 : 1.0);
+  vec3 t, b;
+  if (uTexUse[2].x != 0 && normalMapFrame(n, t, b)) {
     vec3 tn = texture(uNormalTex, texUv(2)).xyz * 2.0 - 1.0;
     tn.xy *= uNormalScale;
     vec3 m = tn.x * t + tn.y * b + tn.z * n;

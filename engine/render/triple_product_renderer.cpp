@@ -177,7 +177,7 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
   // G-buffer, at the shaded size (RenderOptions::supersample).
   t0 = SteadyClock::now();
   im.targets.Ensure(fr);
-  im.gbuffer.Run(fr, im.model, im.materials.emission(), im.targets);
+  im.gbuffer.Run(fr, im.model, im.materials, im.targets);
   out.ms.gbuffer = MsSince(t0);
   im.Stamp(fr, 2);
 

@@ -40,7 +40,7 @@ glm::mat4 ClipFromWorld(const PinholeCamera& camera, const scene::Bounds& bounds
 
 GBufferPass::GBufferPass() : program_(gl::ShaderLibrary::Graphics("render_gbuffer.vert", "render_gbuffer.frag")) {}
 
-void GBufferPass::Run(const RenderFrame& fr, const GpuModel& model, const std::vector<glm::vec3>& emission,
+void GBufferPass::Run(const RenderFrame& fr, const GpuModel& model, const GpuMaterials& materials,
                       RenderTargets& targets) {
   const PinholeCamera& camera = fr.shaded_camera;
   const glm::mat4 clip_from_world = ClipFromWorld(camera, fr.geometry ? model.bounds() : scene::Bounds{});
@@ -62,14 +62,17 @@ void GBufferPass::Run(const RenderFrame& fr, const GpuModel& model, const std::v
            static_cast<float>(camera.position.z))
       .Set("uValidReflectionNormals", fr.options.valid_reflection_normals ? 1 : 0);
   if (fr.geometry)
-    for (const auto& p : model.primitives()) Draw(model, p, emission.at(static_cast<std::size_t>(p.material)));
+    for (const auto& p : model.primitives()) Draw(model, p, materials);
   glFrontFace(GL_CCW);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   gl::Finish();
 }
 
-void GBufferPass::Draw(const GpuModel& model, const GpuModel::Primitive& p, const glm::vec3& emitted) {
-  const auto& m = model.materials()[static_cast<std::size_t>(p.material)];
+void GBufferPass::Draw(const GpuModel& model, const GpuModel::Primitive& p, const GpuMaterials& materials) {
+  const auto index = static_cast<std::size_t>(p.material);
+  const auto& m = model.materials()[index];
+  const glm::vec3 emitted = materials.emission().at(index);
+  const bool overridden = !materials.terms().at(index).from_gbuffer;
   gl::Program& gp = program_;
   gp.Set("uMaterialId", static_cast<float>(p.material + 1))
       .Set("uBaseColorFactor", m.base_color_factor.x, m.base_color_factor.y, m.base_color_factor.z,
@@ -79,7 +82,7 @@ void GBufferPass::Draw(const GpuModel& model, const GpuModel::Primitive& p, cons
       .Set("uNormalScale", m.normal_scale)
       .Set("uEmission", emitted.x, emitted.y, emitted.z)
       .Set("uTransmission", m.transmission)
-      .Set("uAlphaCutoff", m.alpha_mode == scene::PbrMaterial::AlphaMode::kMask ? m.alpha_cutoff : -1.f);
+      .Set("uAlphaCutoff", m.alpha_mode == scene::PbrMaterial::AlphaMode::kMask && !overridden ? m.alpha_cutoff : -1.f);
   // Texture units: base colour and emission sRGB, the others linear (render_gbuffer.frag); the
   // white texel for a texture the material lacks.
   const scene::TextureRef* refs[4] = {&m.base_color_texture, &m.metallic_roughness_texture, &m.normal_texture,
@@ -87,7 +90,9 @@ void GBufferPass::Draw(const GpuModel& model, const GpuModel::Primitive& p, cons
   for (int k = 0; k < 4; ++k) {
     const auto& r = *refs[k];
     const std::string s = std::to_string(k);
-    glProgramUniform2i(gp.id(), gp.Uniform(("uTexUse[" + s + "]").c_str()), r.valid() ? 1 : 0, r.texcoord);
+    // An override's surface has no normal map (its terms read no other texture).
+    const bool use = r.valid() && !(overridden && k == 2);
+    glProgramUniform2i(gp.id(), gp.Uniform(("uTexUse[" + s + "]").c_str()), use ? 1 : 0, r.texcoord);
     gp.Set(("uTexOffsetScale[" + s + "]").c_str(), r.offset.x, r.offset.y, r.scale.x, r.scale.y)
         .Set(("uTexRotation[" + s + "]").c_str(), r.rotation);
     model.Texture(r.valid() ? r.image : -1, k == 0 || k == 3).BindUnit(static_cast<GLuint>(k));

@@ -8,6 +8,7 @@
 #include "engine/gl/objects.h"
 #include "engine/render/passes/gpu_model.h"
 #include "engine/render/passes/render_targets.h"
+#include "engine/render/passes/shade_inputs.h"
 #include "engine/render/pinhole_camera.h"
 
 namespace odvr::render {
@@ -21,13 +22,12 @@ class GBufferPass {
   GBufferPass();  // compiles its shaders: needs a current OpenGL 4.5 context
 
   // Clears the G-buffer of fr's shaded size (RenderTargets::Ensure first) and, when fr.geometry,
-  // draws the model seen by fr.shaded_camera. emission: per material, the radiance it emits before
-  // its emissive texture.
-  void Run(const RenderFrame& fr, const GpuModel& model, const std::vector<glm::vec3>& emission,
-           RenderTargets& targets);
+  // draws the model seen by fr.shaded_camera. A material that an override replaces is drawn as
+  // the override's surface: opaque, without its normal map, emitting nothing.
+  void Run(const RenderFrame& fr, const GpuModel& model, const GpuMaterials& materials, RenderTargets& targets);
 
  private:
-  void Draw(const GpuModel& model, const GpuModel::Primitive& p, const glm::vec3& emitted);
+  void Draw(const GpuModel& model, const GpuModel::Primitive& p, const GpuMaterials& materials);
   gl::Program program_{gl::NoCreate};
 };
 

@@ -1,6 +1,7 @@
 // The G-buffer pass: its clip transform projects a point to the pixel whose ray passes through it;
 // each covered pixel holds the nearest surface on its ray, its material, its normal and the
-// emission it was given; nothing is drawn without the model.
+// emission it was given; nothing is drawn without the model; a normal map bends the normal in the
+// frame of the mesh's tangents, or of its UVs where it has none.
 #include "engine/render/passes/gbuffer_pass.h"
 
 #include <gtest/gtest.h>
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "tests/engine/gl/gl_test_context.h"
@@ -43,16 +45,18 @@ TEST(GbufferPass, ClipFromWorldProjectsAPointOntoItsPixelsRay) {
 }
 
 TEST_F(GbufferPassGL, EachPixelHoldsTheNearestSurfaceOnItsRay) {
-  const scene::GltfScene source = odvr::testing::SphereAndBox();  // sphere r 0.5 at (0, 0.5, 0); box
+  scene::GltfScene source = odvr::testing::SphereAndBox();  // sphere r 0.5 at (0, 0.5, 0); box
+  source.materials[1].emissive_factor = glm::vec3(1, 2, 3);
   const GpuModel model(source, glm::dmat4(1.0));
+  GpuMaterials materials;
+  materials.Set(model.materials(), {});
   const RenderOptions o;
   GBufferPass pass;
   RenderTargets targets;
-  const std::vector<glm::vec3> emission = {glm::vec3(0), glm::vec3(1, 2, 3)};
   for (const bool geometry : {true, false}) {
     const RenderFrame fr = RenderFrame::Make(o, View(), ShadeDevice::kGpu, geometry, {0, 0});
     targets.Ensure(fr);
-    pass.Run(fr, model, emission, targets);
+    pass.Run(fr, model, materials, targets);
     const detail::GBuffer g = targets.ReadGBuffer();
     ASSERT_EQ(g.width, fr.sw);
     int sphere = 0, box = 0;
@@ -89,6 +93,72 @@ TEST_F(GbufferPassGL, EachPixelHoldsTheNearestSurfaceOnItsRay) {
     EXPECT_GT(normal_cos, 0.99);  // interpolated normals, radial
     EXPECT_LT(emission_error, 1e-6);
   }
+}
+
+// A floor quad (normal +y) whose UVs run along +x and +z, or mirrored along −x, with a normal map
+// of one texel tilted toward the map's +x and +y. glTF's frame: t along ∂p/∂u, b = n × t against
+// ∂p/∂v (the map's +y is −v), flipped with the layout.
+scene::GltfScene NormalMappedFloor(bool tangents, bool mirrored, const glm::vec3& tn) {
+  scene::GltfScene s;
+  scene::PbrMaterial m = odvr::testing::Pbr("floor", glm::vec3(0.5f), 0.f, 0.5f);
+  m.normal_texture.image = 0;
+  s.materials = {m};
+  scene::TextureImage image;
+  image.width = image.height = 2;
+  for (int i = 0; i < 4; ++i)
+    for (int c = 0; c < 3; ++c)
+      image.rgba.push_back(static_cast<std::uint8_t>(std::lround((tn[c] * 0.5f + 0.5f) * 255.f)));
+  for (int i = 0; i < 4; ++i) image.rgba.insert(image.rgba.begin() + 4 * i + 3, 255);
+  s.images = {image};
+  scene::ScenePrimitive p;
+  p.positions = {{-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1}};
+  p.normals.assign(4, glm::vec3(0, 1, 0));
+  for (const auto& q : p.positions) p.uv0.emplace_back(mirrored ? (1 - q.x) / 2 : (q.x + 1) / 2, (q.z + 1) / 2);
+  if (tangents) p.tangents.assign(4, glm::vec4(mirrored ? -1 : 1, 0, 0, mirrored ? -1 : 1));
+  p.indices = {0, 1, 2, 0, 2, 3};
+  s.primitives = {p};
+  odvr::testing::Finish(&s);
+  return s;
+}
+
+// Under an override the surface is the override's: no normal map (as the Cycles references'
+// paints have none).
+TEST_F(GbufferPassGL, ANormalMapWithoutTangentsTakesTheFrameItsUvsGive) {
+  const glm::vec3 tn = glm::normalize(glm::vec3(0.5f, 0.3f, 0.81f));
+  RenderOptions o;
+  o.valid_reflection_normals = false;  // the map's normal as it is
+  GBufferPass pass;
+  RenderTargets targets;
+  for (const bool mirrored : {false, true})
+    for (const bool tangents : {true, false})
+      for (const bool overridden : {false, true}) {
+        SCOPED_TRACE(std::string(mirrored ? "mirrored" : "plain") + (tangents ? ", tangents" : ", none") +
+                     (overridden ? ", overridden" : ""));
+        std::vector<MaterialOverride> overrides;
+        if (overridden) overrides.push_back({"", {material::Lambertian{}}});
+        const scene::GltfScene source = NormalMappedFloor(tangents, mirrored, tn);
+        const GpuModel model(source, glm::dmat4(1.0));
+        const RenderFrame fr = RenderFrame::Make(o, View(), ShadeDevice::kGpu, true, {0, 0});
+        targets.Ensure(fr);
+        GpuMaterials materials;
+        materials.Set(model.materials(), overrides);
+        pass.Run(fr, model, materials, targets);
+        const detail::GBuffer g = targets.ReadGBuffer();
+        // t along ∂p/∂u: +x, or −x mirrored; b = −z (against ∂p/∂v = +z) in both layouts.
+        const glm::dvec3 t(mirrored ? -1 : 1, 0, 0), b(0, 0, -1), n(0, 1, 0);
+        const glm::dvec3 expected =
+            overridden ? n : glm::normalize(double(tn.x) * t + double(tn.y) * b + double(tn.z) * n);
+        int covered = 0;
+        double worst = 0;
+        for (std::size_t i = 0; i < g.position.size() / 4; ++i) {
+          if (g.position[4 * i + 3] == 0) continue;
+          ++covered;
+          const glm::dvec3 got(g.normal[4 * i], g.normal[4 * i + 1], g.normal[4 * i + 2]);
+          worst = std::max(worst, glm::length(got - expected));
+        }
+        EXPECT_GT(covered, 1000);
+        EXPECT_LT(worst, 0.02);  // the map's 8-bit texel
+      }
 }
 
 }  // namespace
