@@ -627,48 +627,61 @@ int RunBenchRender(BenchRenderOptions o) {
 
 CommandFn AddBenchRender(CLI::App* sub) {
   auto o = std::make_shared<BenchRenderOptions>();
-  sub->add_option("--references", o->reference_dir, "Directory with references.json (relative: to the repository)");
-  sub->add_option("--street", o->street_dir, "street_a dataset for its frame-10 reference (default ../shared/data)");
+  // The sweep's own options: --set renders every image at the default configuration (the render
+  // switches apply), so it refuses them rather than leave them unused.
+  std::vector<CLI::Option*> sweep_only;
+  sweep_only.push_back(sub->add_option("--references", o->reference_dir,
+                                       "Directory with references.json (relative: to the repository)"));
+  sweep_only.push_back(sub->add_option("--street", o->street_dir,
+                                       "street_a dataset for its frame-10 reference (default ../shared/data)"));
   sub->add_option("--only", o->only, "Run only these references (by name; with --set: images whose name contains one)")
       ->delimiter(',');
-  sub->add_option("--levels", o->levels, "Lighting levels to sweep")->delimiter(',');
-  sub->add_option("--cones", o->cones, "Cone counts to sweep (1, 7, 19, 37)")->delimiter(',');
-  sub->add_option("--voxels", o->voxels, "Voxel resolutions to sweep")->delimiter(',');
+  sweep_only.push_back(sub->add_option("--levels", o->levels, "Lighting levels to sweep")->delimiter(','));
+  sweep_only.push_back(sub->add_option("--cones", o->cones, "Cone counts to sweep (1, 7, 19, 37)")->delimiter(','));
+  sweep_only.push_back(sub->add_option("--voxels", o->voxels, "Voxel resolutions to sweep")->delimiter(','));
   CLI::Option* mc_samples =
       sub->add_option("--mc-samples", o->mc_samples,
                       "Monte-Carlo samples per pixel, one row each (with --set: the largest, on every image)")
           ->delimiter(',');
-  sub->add_option("--mc-voxels", o->mc_voxels, "Voxel resolutions of the Monte-Carlo rows (one row each)")
-      ->delimiter(',');
+  sweep_only.push_back(
+      sub->add_option("--mc-voxels", o->mc_voxels, "Voxel resolutions of the Monte-Carlo rows (one row each)")
+          ->delimiter(','));
   sub->add_option("--mc-seed", o->mc_seed, "Seed of the Monte-Carlo rows");
   sub->add_flag("--mc-exact", o->mc_exact,
                 "Also Monte-Carlo rows with shadow rays against the triangles (method mc-exact): what the voxels cost");
-  sub->add_option("--supersample", o->supersample,
-                  "Shaded samples per pixel along each axis: 1 and, per k > 1, the default SG row, the sweep's finest "
-                  "configuration and the MC rows again")
-      ->delimiter(',')
-      ->check(CLI::Range(1, render::kMaxSupersample));
-  sub->add_option("--supersample-contrast", o->supersample_contrast,
-                  "Per k > 1, an SG row at each of these contrasts (0: every sample of every pixel)")
-      ->delimiter(',')
-      ->check(CLI::Range(0.0, 1.0));
+  sweep_only.push_back(
+      sub->add_option(
+             "--supersample", o->supersample,
+             "Shaded samples per pixel along each axis: 1 and, per k > 1, the default SG row, the sweep's finest "
+             "configuration and the MC rows again")
+          ->delimiter(',')
+          ->check(CLI::Range(1, render::kMaxSupersample)));
+  sweep_only.push_back(
+      sub->add_option("--supersample-contrast", o->supersample_contrast,
+                      "Per k > 1, an SG row at each of these contrasts (0: every sample of every pixel)")
+          ->delimiter(',')
+          ->check(CLI::Range(0.0, 1.0)));
   sub->add_option("--images", o->images_dir,
                   "Also write each scored row's car layer and shadow ratio (linear EXR) here");
-  AddSetFlag(sub, "--no-lobe-modes", &o->lobe_modes, false, "Skip the warp × cosine rows");
-  AddSetFlag(sub, "--no-hd", &o->hd_row, false, "Skip the 1280x720 timing row");
+  sweep_only.push_back(AddSetFlag(sub, "--no-lobe-modes", &o->lobe_modes, false, "Skip the warp × cosine rows"));
+  sweep_only.push_back(AddSetFlag(sub, "--no-hd", &o->hd_row, false, "Skip the 1280x720 timing row"));
   AddSetFlag(sub, "--no-ground-bounce", &o->ground_bounce, false,
              "Light the references from their maps' lower half, not from Cycles' catcher plane");
   AddRenderSwitches(sub, &o->switches);
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go (docs/benchmarks: the committed pages)")
       ->capture_default_str();
-  sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out");
+  sweep_only.push_back(
+      sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out"));
   auto set = std::make_shared<BenchRenderSetOptions>();
   sub->add_option("--set", set->set_dir,
                   "Instead of the sweep: the default configuration over a generalization set (render_reference.py "
                   "--generalization-set's folder), as distributions by map, model, material, ground and region");
   sub->add_option("--envs", set->envs_dir, "The set's maps (default ../shared/data/env)");
-  return [o, set, mc_samples] {
+  return [o, set, mc_samples, sweep_only] {
     if (set->set_dir.empty()) return RunBenchRender(*o);
+    for (const CLI::Option* option : sweep_only)
+      if (option->count() > 0)
+        throw UsageError(option->get_name(), "is the sweep's; --set renders every image at the default configuration");
     set->only = o->only;
     if (mc_samples->count() > 0) set->mc_samples = *std::max_element(o->mc_samples.begin(), o->mc_samples.end());
     set->mc_exact = o->mc_exact;

@@ -138,6 +138,15 @@ TEST(BenchRenderSet, AMalformedSetIsRefusedNamingTheFile) {
       RunOdvr("bench render --set " + kSet.string() + " --only no_such_image --out " + (d.dir / "out").string());
   EXPECT_EQ(none.exit_code, 2) << none.err;
   EXPECT_NE(none.err.find("--only: names no image of " + kSet.string()), std::string::npos) << none.err;
+
+  // The sweep's options are refused, not left unused: the set renders at the default configuration.
+  for (const std::string option : {"--supersample 2", "--levels 3", "--no-hd", "--report-only"}) {
+    const CliRun sweep =
+        RunOdvr("bench render --set " + kSet.string() + " " + option + " --out " + (d.dir / "out").string());
+    EXPECT_EQ(sweep.exit_code, 2) << option << ": " << sweep.err;
+    EXPECT_NE(sweep.err.find(option.substr(0, option.find(' ')) + ": is the sweep's"), std::string::npos) << sweep.err;
+    EXPECT_FALSE(fs::exists(d.dir / "out/render_set.md"));
+  }
 }
 
 }  // namespace
