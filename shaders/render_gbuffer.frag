@@ -70,8 +70,10 @@ vec3 validReflectionNormal(vec3 ng, vec3 wo, vec3 n) {
 // frame its texture coordinates give the surface, as glTF asks of a viewer when tangents are
 // missing: t along ∂p/∂u (solved from the pixel's derivatives of p and uv), b = n × t pointing
 // against ∂p/∂v (the map's +y is −v; a mirrored layout flips it, as MikkTSpace's w does).
-// False where the coordinates give no frame (degenerate, or constant uv).
-bool normalMapFrame(vec3 n, out vec3 t, out vec3 b) {
+// False where the coordinates give no frame (degenerate, or constant uv). dp1, dp2 and duv1, duv2:
+// the screen derivatives (x, y) of the position and of the map's uv, taken in main's uniform
+// control flow.
+bool normalMapFrame(vec3 n, vec3 dp1, vec3 dp2, vec2 duv1, vec2 duv2, out vec3 t, out vec3 b) {
   t = vec3(0.0);
   b = vec3(0.0);
   if (dot(vTangent.xyz, vTangent.xyz) > 1e-12) {
@@ -79,9 +81,6 @@ bool normalMapFrame(vec3 n, out vec3 t, out vec3 b) {
     b = cross(n, t) * (vTangent.w < 0.0 ? -1.0 : 1.0);
     return true;
   }
-  vec2 uv = texUv(2);
-  vec3 dp1 = dFdx(vPosition), dp2 = dFdy(vPosition);
-  vec2 duv1 = dFdx(uv), duv2 = dFdy(uv);
   float det = duv1.x * duv2.y - duv1.y * duv2.x;
   if (!(abs(det) > 1e-20)) return false;
   vec3 dpdu = (dp1 * duv2.y - dp2 * duv1.y) / det;
@@ -106,14 +105,17 @@ void main() {
   }
   vec3 n = vNormal;
   // A degenerate interpolated normal falls back to the face's own.
-  vec3 face = cross(dFdx(vPosition), dFdy(vPosition));
+  vec3 dp_dx = dFdx(vPosition), dp_dy = dFdy(vPosition);
+  vec3 face = cross(dp_dx, dp_dy);
   if (dot(face, uCameraPosition - vPosition) < 0.0) face = -face;
   if (!(dot(n, n) > 1e-12)) n = face;
   if (!(dot(n, n) > 1e-20)) n = vec3(0, 1, 0);
   n = normalize(n);
+  vec2 normal_uv = texUv(2);
+  vec2 duv_dx = dFdx(normal_uv), duv_dy = dFdy(normal_uv);
   vec3 t, b;
-  if (uTexUse[2].x != 0 && normalMapFrame(n, t, b)) {
-    vec3 tn = texture(uNormalTex, texUv(2)).xyz * 2.0 - 1.0;
+  if (uTexUse[2].x != 0 && normalMapFrame(n, dp_dx, dp_dy, duv_dx, duv_dy, t, b)) {
+    vec3 tn = texture(uNormalTex, normal_uv).xyz * 2.0 - 1.0;
     tn.xy *= uNormalScale;
     vec3 m = tn.x * t + tn.y * b + tn.z * n;
     if (dot(m, m) > 1e-12) n = normalize(m);

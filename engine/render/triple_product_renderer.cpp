@@ -87,8 +87,6 @@ void RenderOptions::Check() const {
 
 // --- the renderer ---------------------------------------------------------------------------------
 
-// --- the renderer ----------------------------------------------------------------------
-
 TripleProductRenderer::Impl::Impl(const scene::GltfScene& source, const glm::dmat4& world_from_model,
                                   const RenderOptions& options)
     : model(source, world_from_model),
@@ -196,16 +194,15 @@ RenderResult TripleProductRenderer::Render(const PinholeCamera& camera, ShadeDev
 
 RenderFrame TripleProductRenderer::Impl::MakeFrame(const RenderOptions& options, const PinholeCamera& camera,
                                                    ShadeDevice device, bool draw_model) const {
-  camera.Check();
-  composite.CheckOutputSize(camera.width, camera.height);
-  const bool monte_carlo_on = options.monte_carlo_samples > 0;
-  if (monte_carlo_on && device != ShadeDevice::kGpu)
-    throw Error("render", "the Monte-Carlo baseline runs on the GPU only");
-  if (monte_carlo_on && !(monte_carlo && monte_carlo->has_environment()))
-    throw Error("render", "the Monte-Carlo baseline needs SetEnvironment");
   const scene::Bounds& bounds = model.bounds();
   const glm::dvec2 ground_centre(bounds.empty() ? 0.0 : bounds.center().x, bounds.empty() ? 0.0 : bounds.center().z);
-  return RenderFrame::Make(options, camera, device, model.has_geometry() && draw_model, ground_centre);
+  RenderFrame fr = RenderFrame::Make(options, camera, device, model.has_geometry() && draw_model, ground_centre);
+  composite.CheckOutputSize(fr.w, fr.h);
+  if (fr.monte_carlo && device != ShadeDevice::kGpu)
+    throw Error("render", "the Monte-Carlo baseline runs on the GPU only");
+  if (fr.monte_carlo && !(monte_carlo && monte_carlo->has_environment()))
+    throw Error("render", "the Monte-Carlo baseline needs SetEnvironment");
+  return fr;
 }
 
 void TripleProductRenderer::Impl::Stamp(const RenderFrame& fr, int stage) {
