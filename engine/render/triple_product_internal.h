@@ -17,10 +17,13 @@
 
 namespace odvr::render::detail {
 
-// Where an exact ray against the triangles starts: this far (metres) off the surface along its
-// normal, past the surface's own triangles (the Monte-Carlo shader's shadow rays, and the peaks'
-// with RenderOptions::exact_peak_shadows).
-inline constexpr float kExactRayOffset = 1e-3f;
+// Where an exact ray against the triangles starts: this many level-0 voxels off the surface along
+// its normal, past the surface's own triangles (the Monte-Carlo shader's shadow rays, the peaks'
+// with RenderOptions::exact_peak_shadows, the bounce's march). In voxels, not metres, so that a
+// model renders alike at any scale: a fixed length that clears a car's own triangles spans a
+// crease on a toy-sized model and lets the crease see past its occluders.
+inline constexpr double kExactRayOffsetVoxels = 1.0 / 32;
+inline float ExactRayOffset(double voxel_size) { return static_cast<float>(kExactRayOffsetVoxels * voxel_size); }
 
 // RenderOptions::exact_peak_shadows: a peak wider than kPeakRingMinHalfAngle (its half-value
 // angle; 1°: the maps' suns are 0.4–0.6°, the studio's key light 2°) is sampled by its axis and
@@ -154,6 +157,7 @@ struct ReferenceInputs {
   const lighting::OverlapBins* bins = nullptr;
   const visibility::VoxelGrid* grid = nullptr;   // nullptr: nothing occludes
   const visibility::TriangleBvh* bvh = nullptr;  // RenderOptions::exact_peak_shadows: the peaks' rays
+  float exact_ray_offset = 0;                    // ExactRayOffset of the grid's voxels
   RenderOptions options;
   glm::dvec2 ground_centre{0, 0};  // xz
   // Filled by ShadeReference (RenderOptions::ground_lit_map_texels): the ground's lit fraction at

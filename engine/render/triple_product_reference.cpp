@@ -30,10 +30,10 @@ struct ConeSet {
 double GroundLitFractionAt(double x, double z, const ReferenceInputs& in);
 
 // render_shade.comp's peakRaysVisibility: the share of the peak's rays (PeakRayDirections) from
-// kExactRayOffset along the normal off the surface point that no triangle stops.
+// `offset` (ExactRayOffset) along the normal off the surface point that no triangle stops.
 double PeakRaysVisibility(const glm::dvec3& surface, const glm::dvec3& normal, const lighting::RgbSg& peak,
-                          const visibility::TriangleBvh& bvh) {
-  const glm::vec3 o = glm::vec3(surface) + kExactRayOffset * glm::vec3(normal);
+                          const visibility::TriangleBvh& bvh, float offset) {
+  const glm::vec3 o = glm::vec3(surface) + offset * glm::vec3(normal);
   const std::vector<glm::dvec3> rays = PeakRayDirections(peak.axis, peak.lambda);
   double lit = 0;
   for (const glm::dvec3& d : rays)
@@ -59,8 +59,9 @@ double GroundLitFractionAt(double x, double z, const ReferenceInputs& in) {
   return GroundLitFraction(glm::dvec3(x, 0, z), *in.lighting, in.options.peak_cones, kGroundLitHalfAngle,
                            visibility::kMaxConeHalfAngle, trace, [&](const glm::dvec3& q, std::size_t k, double a) {
                              const lighting::RgbSg& pk = in.lighting->peaks[k];
-                             return in.bvh ? PeakRaysVisibility(q, glm::dvec3(0, 1, 0), pk, *in.bvh)
-                                           : trace(q, pk.axis, a);
+                             return in.bvh
+                                        ? PeakRaysVisibility(q, glm::dvec3(0, 1, 0), pk, *in.bvh, in.exact_ray_offset)
+                                        : trace(q, pk.axis, a);
                            });
 }
 
@@ -231,7 +232,7 @@ void ShadePeaks(const material::Lobe& lobe, const std::vector<double>& peak_visi
 // exact_peak_shadows), or its cone from `p`, the cones' origin off the surface; 1 without geometry.
 double PeakVisibility(const glm::dvec3& p, const glm::dvec3& surface, const glm::dvec3& normal,
                       const lighting::RgbSg& peak, const ReferenceInputs& in) {
-  if (in.bvh) return PeakRaysVisibility(surface, normal, peak, *in.bvh);
+  if (in.bvh) return PeakRaysVisibility(surface, normal, peak, *in.bvh, in.exact_ray_offset);
   if (!in.grid) return 1.0;
   const double a = std::min(HalfValueAngle(peak.lambda), visibility::kMaxConeHalfAngle);
   return in.grid->TraceCone({glm::vec3(p), glm::vec3(peak.axis), static_cast<float>(a)}, in.options.trace);
@@ -469,7 +470,7 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
               if (!(glm::length(bounce_axis[t]) > 0)) continue;
               const glm::dvec3 d = glm::normalize(bounce_axis[t]);
               std::size_t hit = 0;
-              if (BounceHit(in, p + static_cast<double>(kExactRayOffset) * n, d, &hit))
+              if (BounceHit(in, p + static_cast<double>(in.exact_ray_offset) * n, d, &hit))
                 radiance += bounce_weight[t] * BounceRadiance(in, hit, -d);
             }
             radiance += Emitted(g, idx);

@@ -109,7 +109,7 @@ void MonteCarloShadePass::Run(const RenderFrame& fr, const ShadeScene& scene, Re
       .Set("uShadowRayHalfAngle", 1e-4f)
       .Set("uExactTriangles", fr.geometry ? scene.model.bvh_triangle_count() : 0)
       // Off the surface by a millimetre: the G-buffer's positions are interpolated in float.
-      .Set("uExactRayOffset", detail::kExactRayOffset)
+      .Set("uExactRayOffset", detail::ExactRayOffset(spec.voxel_size))
       .Set("uExactVisibility", o.monte_carlo_exact_visibility ? 1 : 0);
   if (o.monte_carlo_exact_visibility) {
     const glm::dvec3 e = GroundIrradianceFromAbove(environment_, glm::transpose(lighting.env_from_world));

@@ -1,6 +1,6 @@
 // The renderer's hard cases, each rendered on both devices, finite, in range and agreeing: Phong
 // n = 10⁴, a car inside a peak's cone, zero-area triangles and degenerate normals, a model far
-// larger than the voxel volume, every material parameter at its bound.
+// larger than the voxel volume, a toy-sized model, every material parameter at its bound.
 #include "engine/render/triple_product_renderer.h"
 
 #include <gtest/gtest.h>
@@ -22,6 +22,8 @@ namespace odvr::render {
 namespace {
 
 using odvr::testing::BoxPrimitive;
+using odvr::testing::kH;
+using odvr::testing::kW;
 using odvr::testing::LambertSphere;
 using odvr::testing::Luma;
 using odvr::testing::MeanCarLuma;
@@ -91,6 +93,32 @@ TEST_F(HardCasesGL, HardCaseModelFarLargerThanTheVoxelVolume) {
   o.voxel_resolution = 64;
   const RenderResult res = RenderBothFinite(s, o, SunnySky(), View(), "2 km slab");
   EXPECT_GT(MeanCarLuma(res), 0.05);
+}
+
+// A model in centimetres renders as one in metres: the scene scaled by 1/50 about the origin (the
+// ground stays y = 0), its camera with it, gives the same picture on both devices. Every length
+// the renderer steps or offsets by is a fraction of the voxels, so only float rounding differs.
+TEST_F(HardCasesGL, HardCaseAToySizedModelRendersAsACarSizedOne) {
+  const double scale = 0.02;
+  const render::PinholeCamera car_view = View();
+  const render::PinholeCamera toy_view = render::PinholeCamera::LookAt(
+      scale * glm::dvec3(-1.2, 1.6, 3.2), scale * glm::dvec3(0.2, 0.4, 0), car_view.vfov_deg, kW, kH);
+  RenderOptions o;
+  o.voxel_resolution = 64;
+  TripleProductRenderer car(SphereAndBox(), glm::dmat4(1.0), o);
+  TripleProductRenderer toy(SphereAndBox(), glm::dmat4(glm::dmat3(scale)), o);
+  car.SetLighting(SunnySky());
+  toy.SetLighting(SunnySky());
+  for (ShadeDevice device : {ShadeDevice::kGpu, ShadeDevice::kCpu}) {
+    const RenderResult a = car.Render(car_view, device), b = toy.Render(toy_view, device);
+    const odvr::testing::Diff car_diff = odvr::testing::Compare(b.car, a.car, a.car_alpha, 1e-2);
+    const odvr::testing::Diff shadow_diff = odvr::testing::Compare(b.shadow, a.shadow, a.ground_mask, 1e-2);
+    std::printf("toy vs car size (%s): car mean relative %.5f over %d px, shadow %.5f\n",
+                device == ShadeDevice::kGpu ? "GPU" : "CPU", car_diff.mean_rel, car_diff.pixels, shadow_diff.mean_rel);
+    EXPECT_GT(car_diff.pixels, 1000);
+    EXPECT_LT(car_diff.mean_rel, 3e-3);
+    EXPECT_LT(shadow_diff.mean_rel, 3e-3);
+  }
 }
 
 TEST_F(HardCasesGL, HardCaseEveryParameterAtItsBound) {
