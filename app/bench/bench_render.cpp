@@ -45,6 +45,7 @@ using render_rows::kDefaultCones;
 using render_rows::kDefaultLevels;
 using render_rows::kDefaultVoxels;
 using render_rows::KeepBelowHorizon;
+using render_rows::Matrix4;
 using render_rows::ReadJsonFile;
 using render_rows::Reference;
 using render_rows::RenderRow;
@@ -108,13 +109,6 @@ std::vector<Reference> LoadMediaReferences(const fs::path& dir, const fs::path& 
     throw Error(json_path.string(), std::string("a field is missing or malformed: ") + e.what());
   }
   return refs;
-}
-
-glm::dmat4 Matrix4(const nlohmann::json& rows) {
-  glm::dmat4 m(1.0);
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) m[c][r] = rows.at(static_cast<std::size_t>(r)).at(static_cast<std::size_t>(c));
-  return m;
 }
 
 // The albedo of the catcher under street_a's car, which the dataset does not state: its frame-10

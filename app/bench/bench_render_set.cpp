@@ -34,6 +34,7 @@ using render_rows::kDefaultCones;
 using render_rows::kDefaultLevels;
 using render_rows::kDefaultVoxels;
 using render_rows::KeepBelowHorizon;
+using render_rows::Matrix4;
 using render_rows::ReadJsonFile;
 using render_rows::Reference;
 using render_rows::RenderRow;
@@ -100,6 +101,8 @@ std::optional<SetImage> LoadSetImage(const fs::path& dir, const std::string& nam
     r.mask.resize(static_cast<std::size_t>(mask.width) * mask.height);
     for (std::size_t i = 0; i < r.mask.size(); ++i) r.mask[i] = mask.rgb[3 * i];
     r.camera = CameraFromJson(im.at("camera"));
+    // Where the script placed the model (stood on the ground); identity in sets made before it did.
+    if (im.contains("world_from_model_odvr")) r.world_from_model = Matrix4(im.at("world_from_model_odvr"));
     if (s.material != "as-is") {
       const auto& mp = im.at("material_params");
       render::MaterialOverride paint;

@@ -36,6 +36,13 @@ nlohmann::json ReadJsonFile(const std::filesystem::path& path) {
   }
 }
 
+glm::dmat4 Matrix4(const nlohmann::json& rows) {
+  glm::dmat4 m(1.0);
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) m[c][r] = rows.at(static_cast<std::size_t>(r)).at(static_cast<std::size_t>(c));
+  return m;
+}
+
 render::PinholeCamera CameraFromJson(const nlohmann::json& cam) {
   const auto& in = cam.at("intrinsics_opencv");
   return render::PinholeCamera::LookAt(Vec3(cam.at("position")), Vec3(cam.at("target")),

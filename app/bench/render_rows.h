@@ -52,6 +52,8 @@ glm::dvec3 Vec3(const nlohmann::json& j);
 // A reference's camera from its JSON (render_reference.py's "camera": position, target, up,
 // vfov_deg, intrinsics_opencv width and height).
 render::PinholeCamera CameraFromJson(const nlohmann::json& camera);
+// A 4×4 matrix from its JSON rows (row-major).
+glm::dmat4 Matrix4(const nlohmann::json& rows);
 
 // Cycles' scene has the catcher under the car: seen from the car, below the horizon is that
 // plane, diffuse albedo 0.18 (references.json), lit by the map's upper half. Both renderers here

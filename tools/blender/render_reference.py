@@ -18,7 +18,8 @@ Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
     done
     every map of ../shared/data/env x the model's own materials, a glossy and a diffuse paint x
     both ground set-ups: "catcher" (the plane below, as above) and "none" (the model alone under
-    the whole map, odvr render's default). The camera frames the model as odvr render's default
+    the whole map, odvr render's default). The model stands on the ground: lifted so that its
+    lowest point is at y = 0 (world_from_model_odvr in each image's JSON). The camera frames the model as odvr render's default
     camera does (from its front-left, a little above, 3.2 bounding radii off, 40 degrees).
 
   the orientation check of the environment map (writes DIR/verify_env.json):
@@ -245,7 +246,13 @@ def import_model(path):
     bpy.ops.import_scene.gltf(filepath=os.path.abspath(path))
     objs = [o for o in bpy.data.objects if o not in before]
     meshes = [o for o in objs if o.type == "MESH"]
-    # The importer's +Y-up to +Z-up conversion makes the model frame odvr's frame; report its box.
+    return meshes, [o for o in objs if o.parent is None], model_box(meshes)
+
+
+def model_box(meshes):
+    """The meshes' box in odvr's frame (the importer's +Y-up to +Z-up conversion makes the model
+    frame odvr's frame)."""
+    bpy.context.view_layer.update()
     lo = Vector((1e9, 1e9, 1e9))
     hi = -lo
     deps = bpy.context.evaluated_depsgraph_get()
@@ -255,8 +262,7 @@ def import_model(path):
             w = ev.matrix_world @ v.co
             lo = Vector(map(min, lo, w))
             hi = Vector(map(max, hi, w))
-    box_odvr = [[lo.x, lo.z, -hi.y], [hi.x, hi.z, -lo.y]]
-    return meshes, box_odvr
+    return [[lo.x, lo.z, -hi.y], [hi.x, hi.z, -lo.y]]
 
 
 def add_mask_aov(mat):
@@ -442,7 +448,8 @@ class Renderer:
     def __init__(self, model, threads, plane_size, albedo, paint_rgb):
         self.scene = setup_scene(threads)
         self.env_node, self.mapping, self.bg = setup_world(self.scene)
-        self.meshes, self.box = import_model(model) if model else ([], None)
+        self.meshes, self.roots, self.box = import_model(model) if model else ([], [], None)
+        self.lift = 0.0  # stand_on_ground's world_from_model translation along +Y (odvr frame)
         self.switch = MaterialSwitch(self.meshes, paint_rgb) if self.meshes else None
         self.catcher = add_catcher(self.scene, plane_size, albedo) if model else None
         cam = bpy.data.objects.new("RefCam", bpy.data.cameras.new("RefCam"))
@@ -451,6 +458,19 @@ class Renderer:
         self.tmpdir = os.path.join(bpy.app.tempdir or "/tmp", "odvr_ref_%d" % os.getpid())
         os.makedirs(self.tmpdir, exist_ok=True)
         setup_compositor(self.scene, self.tmpdir)
+
+    def stand_on_ground(self):
+        """Lift the model so that its lowest point touches the ground (y = 0): a model centred on
+        its origin would otherwise sink through the catcher, which hides what is below it."""
+        lift = -self.box[0][1]
+        for o in self.roots:
+            o.location.z += lift  # Blender +Z is odvr +Y
+        self.lift += lift
+        self.box = model_box(self.meshes)
+
+    def world_from_model(self):
+        """world_from_model (odvr frame, row-major 4x4) of the model as placed."""
+        return [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, self.lift], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
 
     def render(self, out_prefix, env, R_odvr, strength, camera, w, h, spp, seeds, material, ground="catcher"):
         if self.catcher:
@@ -686,6 +706,7 @@ def generalization_set(out_root, model, envs_dir, threads, spp=None, size=None):
     os.makedirs(out_dir, exist_ok=True)
     envs = sorted(f for f in os.listdir(envs_dir) if f.endswith((".exr", ".hdr")))
     r = Renderer(model, threads, 60.0, g["catcher_albedo"], DEFAULT_PAINT)
+    r.stand_on_ground()
     camera = default_camera(r.box)
     R = world_from_env_odvr(0.0)
     entries, t0 = [], time.time()
@@ -700,14 +721,16 @@ def generalization_set(out_root, model, envs_dir, threads, spp=None, size=None):
                     continue
                 info = r.render(prefix, os.path.join(envs_dir, env_file), R, 1.0, camera, *g["size"], g["spp"],
                                 g["seeds"], mat, ground)
-                info.update(name=name, env=env_file, model=model_ref, model_box_odvr=r.box)
+                info.update(name=name, env=env_file, model=model_ref, model_box_odvr=r.box,
+                            world_from_model_odvr=r.world_from_model())
                 write_json(prefix + ".json", info)
                 entries.append(info)
                 print(f"{model_name}/{name}: {sum(info['render_seconds']):.1f} s, noise "
                       f"{info.get('noise', {}).get('mean_of_seeds_car_mean_rel', float('nan')):.4f}", flush=True)
     write_json(os.path.join(out_dir, "set.json"),
                {"what": "Cycles references of one model under every map, material and ground",
-                "model": model_ref, "model_box_odvr": r.box, "camera": camera, "settings": g,
+                "model": model_ref, "model_box_odvr": r.box, "world_from_model_odvr": r.world_from_model(),
+                "camera": camera, "settings": g,
                 "catcher": {"plane": "y = 0, 60 x 60 m centred at the origin, Cycles shadow catcher",
                             "albedo_seen_by_the_car": g["catcher_albedo"]},
                 "seconds_this_run": round(time.time() - t0, 1), "images": [e["name"] for e in entries]})
