@@ -96,6 +96,11 @@ uniform float uBounceThickness;
 uniform int uBounceSrbfs;
 #define BVH_BINDING 14  // 13: render_list_args.comp's
 #include "triangle_bvh.glsl"
+// GpuModel::bvh_shading: per material kBvhShadingRowsPerMaterial rows, then per BVH triangle its
+// vertices' normals (w: its material) from row uBvhShadingMaterials.
+layout(std430, binding = 16) readonly buffer BvhShading { vec4 bvhShading[]; };
+const int kBvhShadingRowsPerMaterial = 2;  // GpuModel::kBvhShadingRowsPerMaterial
+uniform int uBvhShadingMaterials;
 vec3 gSurface, gNormal;
 const float kPeakRingMinHalfAngle = 0.017453292;  // detail::kPeakRingMinHalfAngle, kPeakRingScale
 const float kPeakRingScale = 1.3;
@@ -627,28 +632,24 @@ bool bounceHit(vec3 o, vec3 d, out ivec2 hit) {
   return false;
 }
 
-// The radiance the car surface at G-buffer pixel q sends along wo_in: its specular lobes under
-// the constant, the SRBFs below uBounceSrbfs and the peaks (shadowed from there as a pixel's own:
-// rays or cones), plus what it emits.
-vec3 bounceRadiance(ivec2 q, vec3 wo_in) {
-  vec4 gp = imageLoad(uGPosition, q);
-  int material = int(gp.w + 0.5) - 1;
+// The radiance a car surface at p, normal n, of `material` (its glTF base, metallic and roughness
+// where the material is the glTF's) sends along wo_in: its specular lobes under the constant, the
+// SRBFs below uBounceSrbfs and the peaks (shadowed from there as a pixel's own: rays or cones),
+// plus what it emits.
+vec3 surfaceBounceRadiance(vec3 p, vec3 n, int material, vec3 base, float metallic, float roughness, vec3 emitted,
+                           vec3 wo_in) {
   if (material < 0 || material >= uMaterialCount) return vec3(0.0);
-  vec4 gn = imageLoad(uGNormal, q);
-  vec4 gb = imageLoad(uGBase, q);
-  vec3 n = normalize(gn.xyz);
-  vec3 emitted = imageLoad(uGEmission, q).rgb;
   if (dot(n, wo_in) <= 0.0) return emitted;
   vec3 wo = bendView(n, wo_in);
   float visible[kMaxPeaks];
   for (int k = 0; k < kMaxPeaks; ++k) {
-    visible[k] = k < uPeakCount ? peakVisibility(gp.xyz + uSurfaceOffset * n, gp.xyz, n, k) : 1.0;
+    visible[k] = k < uPeakCount ? peakVisibility(p + uSurfaceOffset * n, p, n, k) : 1.0;
   }
   gLinear = vec3(0.0);  // a specular lobe's integrals have no linear factor
   vec3 radiance = vec3(0.0);
   for (int k = 0; k < uTermsPerMaterial; ++k) {
     MaterialTerm term = terms[materialRow(material) + k];
-    TermLobes t = describeTerm(term.type.x, term.color, term.params, gb.rgb, gb.a, gn.w, n, wo);
+    TermLobes t = describeTerm(term.type.x, term.color, term.params, base, metallic, roughness, n, wo);
     for (int i = 0; i < t.count; ++i) {
       vec3 axis, weight;
       float lambda;
@@ -668,6 +669,58 @@ vec3 bounceRadiance(ivec2 q, vec3 wo_in) {
   return max(radiance, vec3(0.0)) + emitted;
 }
 
+// surfaceBounceRadiance of the car surface at G-buffer pixel q.
+vec3 bounceRadiance(ivec2 q, vec3 wo_in) {
+  vec4 gp = imageLoad(uGPosition, q);
+  vec4 gn = imageLoad(uGNormal, q);
+  vec4 gb = imageLoad(uGBase, q);
+  return surfaceBounceRadiance(gp.xyz, normalize(gn.xyz), int(gp.w + 0.5) - 1, gb.rgb, gb.a, gn.w,
+                               imageLoad(uGEmission, q).rgb, wo_in);
+}
+
+// The G-buffer pixel that shows world point x (within uBounceThickness along the camera's axis).
+bool gbufferShows(vec3 x, out ivec2 q) {
+  q = ivec2(0);
+  vec3 c = transpose(uWorldFromCamera) * (x - uCameraPosition);
+  if (!(c.z > 1e-4)) return false;
+  vec2 f = floor(c.xy / c.z * uFocal + 0.5 * vec2(uSize));
+  if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(uSize.x) && f.y < float(uSize.y))) return false;
+  q = ivec2(f);
+  vec4 gp = imageLoad(uGPosition, q);
+  return gp.w >= 0.5 && abs(dot(uWorldFromCamera[2], gp.xyz - uCameraPosition) - c.z) < uBounceThickness;
+}
+
+// What the car sends back along −d from the first triangle the ray o + t d hits (the BVH): the
+// G-buffer's surface there when the camera sees it (its textures), else the triangle's own — its
+// vertices' normals interpolated and turned to face the ray, its material's mean factors
+// (GpuModel::bvh_shading). false when the ray leaves the car.
+bool triangleBounce(vec3 o, vec3 d, out vec3 radiance) {
+  radiance = vec3(0.0);
+  int tri;
+  float t;
+  vec2 uv;
+  if (!rayClosestHit(o, d, 3.0e38, tri, t, uv)) return false;
+  vec3 x = o + t * d;
+  ivec2 q;
+  if (gbufferShows(x, q)) {
+    radiance = bounceRadiance(q, -d);
+    return true;
+  }
+  int row = uBvhShadingMaterials + 3 * tri;
+  vec4 n0 = bvhShading[row], n1 = bvhShading[row + 1], n2 = bvhShading[row + 2];
+  vec3 n = (1.0 - uv.x - uv.y) * n0.xyz + uv.x * n1.xyz + uv.y * n2.xyz;
+  vec3 v0 = bvhTriangles[3 * tri].xyz;
+  vec3 face = cross(bvhTriangles[3 * tri + 1].xyz - v0, bvhTriangles[3 * tri + 2].xyz - v0);
+  n = dot(n, n) > 1e-12 ? normalize(n) : normalize(face);
+  if (dot(n, d) > 0.0) n = -n;  // both sides shade, as Cycles turns a back face's normal to the ray
+  int material = int(n0.w + 0.5);
+  vec4 base_metallic = bvhShading[kBvhShadingRowsPerMaterial * material];
+  vec4 emission_roughness = bvhShading[kBvhShadingRowsPerMaterial * material + 1];
+  radiance = surfaceBounceRadiance(x, n, material, base_metallic.rgb, base_metallic.a, emission_roughness.a,
+                                   emission_roughness.rgb, -d);
+  return true;
+}
+
 // Σ over the terms whose specular lobes lost light to the car: that loss's weight times the
 // radiance of the surface the G-buffer shows along their mean direction.
 vec3 specularBounce() {
@@ -675,8 +728,14 @@ vec3 specularBounce() {
   for (int t = 0; t < kBounceTerms; ++t) {
     if (length(gBounceAxis[t]) <= 0.0) continue;
     vec3 d = normalize(gBounceAxis[t]);
+    vec3 o = gSurface + uExactRayOffset * gNormal;
+    if (uExactTriangles > 0) {
+      vec3 radiance;
+      if (triangleBounce(o, d, radiance)) sum += gBounceWeight[t] * radiance;
+      continue;
+    }
     ivec2 q;
-    if (bounceHit(gSurface + uExactRayOffset * gNormal, d, q)) sum += gBounceWeight[t] * bounceRadiance(q, -d);
+    if (bounceHit(o, d, q)) sum += gBounceWeight[t] * bounceRadiance(q, -d);
   }
   return sum;
 }

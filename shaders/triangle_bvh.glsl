@@ -41,3 +41,49 @@ bool rayOccluded(vec3 o, vec3 d) {
   }
   return false;
 }
+
+// visibility::TriangleBvh::ClosestHit: the nearest triangle along o + t d, t in (0, t_max), its
+// index in the BVH's order, t and the barycentrics (u, v) of vertices 1 and 2.
+bool rayClosestHit(vec3 o, vec3 d, float t_max, out int hit_triangle, out float hit_t, out vec2 hit_uv) {
+  hit_triangle = -1;
+  hit_t = t_max;
+  hit_uv = vec2(0.0);
+  if (uExactTriangles <= 0) return false;
+  vec3 inv = 1.0 / d;
+  int stack[48];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    int node = stack[--top];
+    vec4 lo = bvhNodes[2 * node], hi = bvhNodes[2 * node + 1];
+    vec3 a = (lo.xyz - o) * inv, b = (hi.xyz - o) * inv;
+    vec3 tn = min(a, b), tf = max(a, b);
+    if (max(max(tn.x, tn.y), max(tn.z, 0.0)) > min(min(min(tf.x, tf.y), tf.z), hit_t)) continue;
+    int first = floatBitsToInt(lo.w), count = floatBitsToInt(hi.w);
+    if (count == 0) {
+      stack[top++] = first;
+      stack[top++] = first + 1;
+      continue;
+    }
+    for (int t = first; t < first + count; ++t) {
+      vec3 v0 = bvhTriangles[3 * t].xyz, e1 = bvhTriangles[3 * t + 1].xyz - v0, e2 = bvhTriangles[3 * t + 2].xyz - v0;
+      vec3 p = cross(d, e2);
+      float det = dot(e1, p);
+      if (det == 0.0) continue;
+      float inv_det = 1.0 / det;
+      vec3 s = o - v0;
+      float u = dot(s, p) * inv_det;
+      if (u < 0.0 || u > 1.0) continue;
+      vec3 q = cross(s, e1);
+      float v = dot(d, q) * inv_det;
+      if (v < 0.0 || u + v > 1.0) continue;
+      float th = dot(e2, q) * inv_det;
+      if (th > 0.0 && th < hit_t) {
+        hit_triangle = t;
+        hit_t = th;
+        hit_uv = vec2(u, v);
+      }
+    }
+  }
+  return hit_triangle >= 0;
+}

@@ -158,6 +158,9 @@ struct ReferenceInputs {
   const visibility::VoxelGrid* grid = nullptr;   // nullptr: nothing occludes
   const visibility::TriangleBvh* bvh = nullptr;  // RenderOptions::exact_peak_shadows: the peaks' rays
   float exact_ray_offset = 0;                    // ExactRayOffset of the grid's voxels
+  // With bvh: GpuModel::bvh_shading, its triangles' rows from row bvh_shading_materials.
+  const std::vector<glm::vec4>* bvh_shading = nullptr;
+  int bvh_shading_materials = 0;
   RenderOptions options;
   glm::dvec2 ground_centre{0, 0};  // xz
   // Filled by ShadeReference (RenderOptions::ground_lit_map_texels): the ground's lit fraction at

@@ -10,6 +10,7 @@
 #include "core/constants.h"
 #include "core/parallel.h"
 #include "engine/lighting/sg.h"
+#include "engine/render/passes/gpu_model.h"
 #include "engine/render/triple_product_internal.h"
 
 namespace odvr::render::detail {
@@ -257,14 +258,24 @@ std::vector<double> TracePeakCones(const glm::dvec3& p, const glm::dvec3& surfac
   return v;
 }
 
-// The lobes of a pixel's material: the override's terms, or the glTF metallic-roughness the
-// G-buffer holds at `idx`. `term_of` gets each lobe's term; `on_term(brdf, own lobes)` is called
-// after each term's lobes are appended.
+// A surface's glTF metallic-roughness: the G-buffer's (its textures) or a material's means.
+struct GltfSample {
+  glm::dvec3 base{1};
+  double metallic = 0, roughness = 1;
+};
+
+GltfSample GltfAt(const GBuffer& g, std::size_t idx) {
+  return {glm::dvec3(g.base[4 * idx], g.base[4 * idx + 1], g.base[4 * idx + 2]), g.base[4 * idx + 3],
+          g.normal[4 * idx + 3]};
+}
+
+// The lobes of a surface's material: the override's terms, or its glTF metallic-roughness `gltf`.
+// `term_of` gets each lobe's term; `on_term(brdf, own lobes)` is called after each term's lobes
+// are appended.
 template <class OnTerm>
-void AppendMaterialLobes(const ReferenceInputs& in, std::size_t idx, int material, const material::ShadingFrame& frame,
-                         const glm::dvec3& wo, std::vector<material::Lobe>* lobes, std::vector<int>* term_of,
-                         const OnTerm& on_term) {
-  const GBuffer& g = *in.gbuffer;
+void AppendMaterialLobes(const ReferenceInputs& in, const GltfSample& gltf, int material,
+                         const material::ShadingFrame& frame, const glm::dvec3& wo, std::vector<material::Lobe>* lobes,
+                         std::vector<int>* term_of, const OnTerm& on_term) {
   const auto add = [&](const material::Brdf& brdf, int term) {
     const std::size_t first = lobes->size();
     material::AppendLobes(brdf, frame, wo, lobes, in.options.lobes);
@@ -273,10 +284,7 @@ void AppendMaterialLobes(const ReferenceInputs& in, std::size_t idx, int materia
   };
   const MaterialTermList& list = (*in.materials)[static_cast<std::size_t>(material)];
   int term = 0;
-  if (list.from_gbuffer)
-    add(material::MetallicRoughness{glm::dvec3(g.base[4 * idx], g.base[4 * idx + 1], g.base[4 * idx + 2]),
-                                    g.base[4 * idx + 3], g.normal[4 * idx + 3]},
-        term++);
+  if (list.from_gbuffer) add(material::MetallicRoughness{gltf.base, gltf.metallic, gltf.roughness}, term++);
   for (const material::Brdf& brdf : list.terms) add(brdf, term++);
 }
 
@@ -311,16 +319,12 @@ glm::dvec3 Emitted(const GBuffer& g, std::size_t q) {
   return glm::dvec3(g.emission[4 * q], g.emission[4 * q + 1], g.emission[4 * q + 2]);
 }
 
-// render_shade.comp's bounceRadiance: what the car surface at G-buffer sample q sends along
-// wo_in, from its specular lobes under the constant, the coarse SRBFs and the peaks (shadowed from
-// there), plus what it emits.
-glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::dvec3& wo_in) {
-  const GBuffer& g = *in.gbuffer;
-  const int material = static_cast<int>(std::lround(g.position[4 * q + 3])) - 1;
+// render_shade.comp's surfaceBounceRadiance: what a car surface at x, normal n, of `material`
+// sends along wo_in, from its specular lobes under the constant, the coarse SRBFs and the peaks
+// (shadowed from there), plus what it emits.
+glm::dvec3 SurfaceBounceRadiance(const ReferenceInputs& in, const glm::dvec3& x, const glm::dvec3& n, int material,
+                                 const GltfSample& gltf, const glm::dvec3& emitted, const glm::dvec3& wo_in) {
   if (material < 0 || material >= static_cast<int>(in.materials->size())) return glm::dvec3(0);
-  const glm::dvec3 emitted = Emitted(g, q);
-  const glm::dvec3 x(g.position[4 * q], g.position[4 * q + 1], g.position[4 * q + 2]);
-  const glm::dvec3 n = glm::normalize(glm::dvec3(g.normal[4 * q], g.normal[4 * q + 1], g.normal[4 * q + 2]));
   if (glm::dot(n, wo_in) <= 0) return emitted;
   const PreparedLighting& L = *in.lighting;
   std::vector<double> visible(std::min<std::size_t>(L.peaks.size(), TripleProductRenderer::kMaxPeakCones), 1.0);
@@ -328,7 +332,7 @@ glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::d
   for (std::size_t k = 0; k < visible.size(); ++k) visible[k] = PeakVisibility(origin, x, n, L.peaks[k], in);
   std::vector<material::Lobe> lobes;
   std::vector<int> term_of;
-  AppendMaterialLobes(in, q, material, material::ShadingFrame::FromNormal(n), wo_in, &lobes, &term_of,
+  AppendMaterialLobes(in, gltf, material, material::ShadingFrame::FromNormal(n), wo_in, &lobes, &term_of,
                       [](const material::Brdf&, std::span<const material::Lobe>) {});
   const int srbfs = BounceSrbfCount(L);
   glm::dvec3 radiance(0);
@@ -345,6 +349,63 @@ glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::d
     radiance += lobe.weight * lobe.sg.amplitude * light;
   }
   return glm::max(radiance, glm::dvec3(0)) + emitted;
+}
+
+// render_shade.comp's bounceRadiance: SurfaceBounceRadiance of G-buffer sample q.
+glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::dvec3& wo_in) {
+  const GBuffer& g = *in.gbuffer;
+  const int material = static_cast<int>(std::lround(g.position[4 * q + 3])) - 1;
+  const glm::dvec3 x(g.position[4 * q], g.position[4 * q + 1], g.position[4 * q + 2]);
+  const glm::dvec3 n = glm::normalize(glm::dvec3(g.normal[4 * q], g.normal[4 * q + 1], g.normal[4 * q + 2]));
+  return SurfaceBounceRadiance(in, x, n, material, GltfAt(g, q), Emitted(g, q), wo_in);
+}
+
+// render_shade.comp's gbufferShows: the G-buffer sample that shows world point x, within the
+// bounce's thickness along the camera's axis.
+bool GbufferShows(const ReferenceInputs& in, const glm::dvec3& x, std::size_t* q) {
+  const GBuffer& g = *in.gbuffer;
+  const glm::dvec3 c = glm::transpose(in.camera.world_from_camera) * (x - in.camera.position);
+  if (!(c.z > 1e-4)) return false;
+  const double focal = in.camera.focal_px();
+  const double px = std::floor(c.x / c.z * focal + 0.5 * g.width), py = std::floor(c.y / c.z * focal + 0.5 * g.height);
+  if (!(px >= 0 && py >= 0 && px < g.width && py < g.height)) return false;
+  *q = static_cast<std::size_t>(py) * static_cast<std::size_t>(g.width) + static_cast<std::size_t>(px);
+  if (g.position[4 * *q + 3] < 0.5f) return false;
+  const glm::dvec3 surface(g.position[4 * *q], g.position[4 * *q + 1], g.position[4 * *q + 2]);
+  const double thickness = in.options.bounce_thickness_voxels * in.grid->spec().voxel_size;
+  return std::abs(glm::dot(in.camera.world_from_camera[2], surface - in.camera.position) - c.z) < thickness;
+}
+
+// render_shade.comp's triangleBounce: what the car sends back along −d from the first triangle
+// the ray o + t d hits — the G-buffer's surface there when the camera sees it, else the
+// triangle's own (normals interpolated and turned to the ray, its material's means).
+bool TriangleBounce(const ReferenceInputs& in, const glm::dvec3& o, const glm::dvec3& d, glm::dvec3* radiance) {
+  *radiance = glm::dvec3(0);
+  visibility::TriangleBvh::Hit hit;
+  if (!in.bvh->ClosestHit(glm::vec3(o), glm::vec3(d), 0.f, 3.0e38f, &hit)) return false;
+  const glm::dvec3 x = o + static_cast<double>(hit.t) * d;
+  std::size_t q = 0;
+  if (GbufferShows(in, x, &q)) {
+    *radiance = BounceRadiance(in, q, -d);
+    return true;
+  }
+  const std::vector<glm::vec4>& rows = *in.bvh_shading;
+  const std::size_t row =
+      static_cast<std::size_t>(in.bvh_shading_materials) + 3 * static_cast<std::size_t>(hit.triangle);
+  const glm::vec4 n0 = rows[row], n1 = rows[row + 1], n2 = rows[row + 2];
+  glm::dvec3 n = glm::dvec3((1.f - hit.u - hit.v) * glm::vec3(n0) + hit.u * glm::vec3(n1) + hit.v * glm::vec3(n2));
+  const std::vector<glm::vec4>& tris = in.bvh->triangles();
+  const std::size_t v = 3 * static_cast<std::size_t>(hit.triangle);
+  const glm::dvec3 face = glm::cross(glm::dvec3(tris[v + 1] - tris[v]), glm::dvec3(tris[v + 2] - tris[v]));
+  n = glm::dot(n, n) > 1e-12 ? glm::normalize(n) : glm::normalize(face);
+  if (glm::dot(n, d) > 0) n = -n;
+  const int material = static_cast<int>(std::lround(n0.w));
+  const std::size_t m =
+      static_cast<std::size_t>(GpuModel::kBvhShadingRowsPerMaterial) * static_cast<std::size_t>(material);
+  if (material < 0 || m + 1 >= rows.size()) return true;
+  const GltfSample gltf{glm::dvec3(rows[m]), rows[m].w, rows[m + 1].w};
+  *radiance = SurfaceBounceRadiance(in, x, n, material, gltf, glm::dvec3(rows[m + 1]), -d);
+  return true;
 }
 
 }  // namespace
@@ -407,7 +468,7 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
             // out under it (material::GgxResidualUnderSgLight).
             std::vector<glm::dvec3> peak_sum(in.options.peak_cones ? peak_v.size() : 0, glm::dvec3(0));
             AppendMaterialLobes(
-                in, idx, material, frame, wo, &lobes, &lobe_term,
+                in, GltfAt(g, idx), material, frame, wo, &lobes, &lobe_term,
                 [&](const material::Brdf& brdf, std::span<const material::Lobe> own) {
                   for (std::size_t k = 0; k < peak_sum.size(); ++k) {
                     const auto& pk = in.lighting->peaks[k];
@@ -469,9 +530,11 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
             for (int t = 0; t < kBounceTerms; ++t) {
               if (!(glm::length(bounce_axis[t]) > 0)) continue;
               const glm::dvec3 d = glm::normalize(bounce_axis[t]);
+              const glm::dvec3 o = p + static_cast<double>(in.exact_ray_offset) * n;
               std::size_t hit = 0;
-              if (BounceHit(in, p + static_cast<double>(in.exact_ray_offset) * n, d, &hit))
-                radiance += bounce_weight[t] * BounceRadiance(in, hit, -d);
+              glm::dvec3 bounced(0);
+              if (in.bvh ? TriangleBounce(in, o, d, &bounced) : BounceHit(in, o, d, &hit))
+                radiance += bounce_weight[t] * (in.bvh ? bounced : BounceRadiance(in, hit, -d));
             }
             radiance += Emitted(g, idx);
             for (int c = 0; c < 3; ++c) result->car.rgb[3 * idx + c] = static_cast<float>(radiance[c]);

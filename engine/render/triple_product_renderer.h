@@ -102,15 +102,18 @@ struct RenderOptions {
   // both read off there. On by default: it lowers the car's error against the Cycles references on
   // all but one scene. Off: the interpolated normal as it is.
   bool valid_reflection_normals = true;
-  // One bounce of the car's specular light on itself, found in screen space: where a term's
-  // specular lobes are occluded (their cones meet the car), the G-buffer is marched along their
-  // occlusion-weighted mean direction, and a surface it passes behind is shaded for the view back
-  // along it — its specular lobes only, under the peaks (each shadowed from there as the pixel's
-  // own), the constant and the lighting's levels 0–1 — and seen through the occluded part of the
-  // lobes. Cycles with one bounce is within its noise of the references, and without the car's
+  // One bounce of the car's specular light on itself: where a term's specular lobes are occluded
+  // (their cones meet the car), a ray along their occlusion-weighted mean direction finds the car
+  // surface they see, which is shaded for the view back along it — its specular lobes only, under
+  // the peaks (each shadowed from there as the pixel's own), the constant and the lighting's
+  // levels 0–1 — and seen through the occluded part of the lobes. With exact_peak_shadows the ray
+  // is cast against the triangles (their BVH): a hit the camera sees takes the G-buffer's material
+  // there (its textures), one it does not (a recess's inner wall, a wheel arch's far side) its
+  // triangle's interpolated normal and its material's factors times their textures' means.
+  // Without it the G-buffer is marched instead, and what the camera does not see reflects
+  // nothing. Cycles with one bounce is within its noise of the references, and without the car's
   // light on itself the glossy paints read dark; the diffuse bounce gives back little of it, so the
-  // hit's diffuse lobe is left out. What the camera does not see (a recess's inner walls) reflects
-  // nothing.
+  // hit's diffuse lobe is left out.
   bool specular_bounce = true;
   // The car's diffuse light on itself, every bounce: where a clamped-cosine (diffuse) lobe's cones
   // meet the car, the occluded part of the lobe sees car surfaces, not black. They are taken to

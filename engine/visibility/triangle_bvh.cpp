@@ -31,9 +31,9 @@ int AsInt(float f) {
   return v;
 }
 
-// Möller–Trumbore, both sides; the shader's test is the same.
+// Möller–Trumbore, both sides; the shader's test is the same. On a hit, *t, *u, *v.
 bool HitsTriangle(const glm::vec3& o, const glm::vec3& d, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
-                  float t_min, float t_max) {
+                  float t_min, float t_max, float* t_out = nullptr, float* u_out = nullptr, float* v_out = nullptr) {
   const glm::vec3 e1 = b - a, e2 = c - a, p = glm::cross(d, e2);
   const float det = glm::dot(e1, p);
   if (det == 0.f) return false;
@@ -45,7 +45,9 @@ bool HitsTriangle(const glm::vec3& o, const glm::vec3& d, const glm::vec3& a, co
   const float v = glm::dot(d, q) * inv;
   if (v < 0.f || u + v > 1.f) return false;
   const float t = glm::dot(e2, q) * inv;
-  return t > t_min && t < t_max;
+  if (!(t > t_min && t < t_max)) return false;
+  if (t_out) *t_out = t, *u_out = u, *v_out = v;
+  return true;
 }
 
 bool HitsBox(const glm::vec3& o, const glm::vec3& inv_d, const glm::vec3& lo, const glm::vec3& hi, float t_min,
@@ -91,8 +93,10 @@ TriangleBvh::TriangleBvh(std::span<const glm::vec3> vertices) {
     // A leaf when small, at the stack's depth, or when the centroids coincide (no split helps).
     if (count <= static_cast<std::size_t>(kLeafSize) || task.depth + 1 >= kMaxDepth || !(ext[axis] > 0)) {
       const int first = static_cast<int>(triangles_.size() / 3);
-      for (std::size_t i = task.begin; i < task.end; ++i)
+      for (std::size_t i = task.begin; i < task.end; ++i) {
         for (int k = 0; k < 3; ++k) triangles_.emplace_back(vertices[3 * tris[i] + k], 1.f);
+        source_.push_back(static_cast<int>(tris[i]));
+      }
       nodes_[2 * task.node] = glm::vec4(box.lo, AsFloat(first));
       nodes_[2 * task.node + 1] = glm::vec4(box.hi, AsFloat(static_cast<int>(count)));
       continue;
@@ -135,6 +139,38 @@ bool TriangleBvh::Occluded(const glm::vec3& o, const glm::vec3& d, float t_min, 
     }
   }
   return false;
+}
+
+bool TriangleBvh::ClosestHit(const glm::vec3& o, const glm::vec3& d, float t_min, float t_max, Hit* hit) const {
+  *hit = Hit{};
+  if (triangles_.empty()) return false;
+  const glm::vec3 inv(1.f / d.x, 1.f / d.y, 1.f / d.z);
+  int stack[kMaxDepth + 1];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const int node = stack[--top];
+    const glm::vec4 lo = nodes_[2 * static_cast<std::size_t>(node)],
+                    hi = nodes_[2 * static_cast<std::size_t>(node) + 1];
+    // t_max shrinks to the nearest hit so far: farther boxes are skipped.
+    if (!HitsBox(o, inv, glm::vec3(lo), glm::vec3(hi), t_min, t_max)) continue;
+    const int a = AsInt(lo.w), count = AsInt(hi.w);
+    if (count == 0) {
+      stack[top++] = a;
+      stack[top++] = a + 1;
+      continue;
+    }
+    for (int t = a; t < a + count; ++t) {
+      const std::size_t i = 3 * static_cast<std::size_t>(t);
+      float th = 0, u = 0, v = 0;
+      if (HitsTriangle(o, d, glm::vec3(triangles_[i]), glm::vec3(triangles_[i + 1]), glm::vec3(triangles_[i + 2]),
+                       t_min, t_max, &th, &u, &v)) {
+        *hit = Hit{t, th, u, v};
+        t_max = th;
+      }
+    }
+  }
+  return hit->triangle >= 0;
 }
 
 }  // namespace odvr::visibility

@@ -7,6 +7,33 @@
 #include <glm/matrix.hpp>
 
 namespace odvr::render {
+namespace {
+
+// The mean of a texture's channels, linear (sRGB decoded first where `srgb`); 1 without one.
+glm::vec4 TextureMean(const scene::GltfScene& model, const scene::TextureRef& ref, bool srgb) {
+  if (!ref.valid() || static_cast<std::size_t>(ref.image) >= model.images.size()) return glm::vec4(1);
+  const scene::TextureImage& img = model.images[static_cast<std::size_t>(ref.image)];
+  const std::size_t texels = img.rgba.size() / 4;
+  if (texels == 0) return glm::vec4(1);
+  glm::dvec4 sum(0);
+  for (std::size_t i = 0; i < texels; ++i)
+    for (int c = 0; c < 4; ++c) {
+      const double v = img.rgba[4 * i + static_cast<std::size_t>(c)] / 255.0;
+      sum[c] += srgb && c < 3 ? (v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4)) : v;
+    }
+  return glm::vec4(sum / static_cast<double>(texels));
+}
+
+// GpuModel::bvh_shading's two rows of a material.
+void AppendMaterialMeans(const scene::GltfScene& model, const scene::PbrMaterial& m, std::vector<glm::vec4>* rows) {
+  const glm::vec4 base = TextureMean(model, m.base_color_texture, true);
+  const glm::vec4 mr = TextureMean(model, m.metallic_roughness_texture, false);  // G roughness, B metallic
+  const glm::vec4 emissive = TextureMean(model, m.emissive_texture, true);
+  rows->emplace_back(glm::vec3(m.base_color_factor) * glm::vec3(base), m.metallic_factor * mr.b);
+  rows->emplace_back(m.emission() * glm::vec3(emissive), m.roughness_factor * mr.g);
+}
+
+}  // namespace
 
 GpuModel::GpuModel(const scene::GltfScene& model, const glm::dmat4& world_from_model) {
   white_ = gl::Texture::Create2D(GL_RGBA8, 1, 1);
@@ -40,7 +67,10 @@ GpuModel::GpuModel(const scene::GltfScene& model, const glm::dmat4& world_from_m
     std::vector<std::uint32_t> idx = prim.indices;
     if (flips)
       for (std::size_t t = 0; t + 2 < idx.size(); t += 3) std::swap(idx[t + 1], idx[t + 2]);
-    for (std::uint32_t k : idx) triangles_.push_back(pos[k]);
+    for (std::uint32_t k : idx) {
+      triangles_.push_back(pos[k]);
+      triangle_normals_.push_back(nor[k]);
+    }
     Primitive p;
     p.positions.SetData(pos);
     p.normals.SetData(nor);
@@ -50,6 +80,7 @@ GpuModel::GpuModel(const scene::GltfScene& model, const glm::dmat4& world_from_m
     p.indices.SetData(idx);
     p.index_count = static_cast<GLsizei>(idx.size());
     p.material = std::clamp(prim.material, 0, static_cast<int>(materials_.size()) - 1);
+    triangle_materials_.insert(triangle_materials_.end(), idx.size() / 3, p.material);
     p.vao.AddFloatAttribute(0, p.positions, 0, 3, 0, sizeof(glm::vec3))
         .AddFloatAttribute(1, p.normals, 1, 3, 0, sizeof(glm::vec3))
         .AddFloatAttribute(2, p.uv0, 2, 2, 0, sizeof(glm::vec2))
@@ -63,6 +94,7 @@ GpuModel::GpuModel(const scene::GltfScene& model, const glm::dmat4& world_from_m
     if (mat.emissive_texture.valid()) Upload(model, mat.emissive_texture.image, true);
     primitives_.push_back(std::move(p));
   }
+  for (const scene::PbrMaterial& m : materials_) AppendMaterialMeans(model, m, &material_means_);
   if (has_geometry()) {
     std::vector<glm::vec4> padded(triangles_.size());
     for (std::size_t i = 0; i < padded.size(); ++i) padded[i] = glm::vec4(triangles_[i], 1.f);
@@ -92,6 +124,12 @@ void GpuModel::BuildBvh() {
   bvh_ = std::make_unique<visibility::TriangleBvh>(triangles_);
   bvh_nodes_ = MakeBuffer(bvh_->nodes());
   bvh_triangles_ = MakeBuffer(bvh_->triangles());
+  bvh_shading_ = material_means_;
+  for (int t : bvh_->source_triangles())
+    for (int k = 0; k < 3; ++k)
+      bvh_shading_.emplace_back(triangle_normals_[3 * static_cast<std::size_t>(t) + static_cast<std::size_t>(k)],
+                                static_cast<float>(triangle_materials_[static_cast<std::size_t>(t)]));
+  bvh_shading_buffer_ = MakeBuffer(bvh_shading_);
 }
 
 }  // namespace odvr::render

@@ -48,6 +48,13 @@ class GpuModel {
   const visibility::TriangleBvh* bvh() const { return bvh_.get(); }
   const gl::Buffer& bvh_nodes() const { return bvh_nodes_; }
   const gl::Buffer& bvh_triangles() const { return bvh_triangles_; }
+  // What a ray's hit on a triangle the camera does not see is shaded with (the specular bounce):
+  // per material two rows, (base colour, metallic) and (emission, roughness), each its factor
+  // times its texture's mean; then per BVH triangle three rows, its vertices' normals (world) with
+  // w = its material. kBvhShadingRowsPerMaterial × materials().size() rows precede the triangles.
+  static constexpr int kBvhShadingRowsPerMaterial = 2;
+  const std::vector<glm::vec4>& bvh_shading() const { return bvh_shading_; }
+  const gl::Buffer& bvh_shading_buffer() const { return bvh_shading_buffer_; }
   int bvh_triangle_count() const { return bvh_ ? static_cast<int>(bvh_->triangle_count()) : 0; }
 
  private:
@@ -58,10 +65,15 @@ class GpuModel {
   std::map<std::pair<int, bool>, gl::Texture> textures_;  // (image, sRGB)
   gl::Texture white_{gl::NoCreate};
   std::vector<glm::vec3> triangles_;
+  std::vector<glm::vec3> triangle_normals_;  // per vertex of triangles_
+  std::vector<int> triangle_materials_;      // per triangle of triangles_
+  std::vector<glm::vec4> material_means_;    // bvh_shading()'s material rows
   scene::Bounds bounds_;
   gl::Buffer triangle_buffer_{gl::NoCreate};
   std::unique_ptr<visibility::TriangleBvh> bvh_;
   gl::Buffer bvh_nodes_{gl::NoCreate}, bvh_triangles_{gl::NoCreate};
+  std::vector<glm::vec4> bvh_shading_;
+  gl::Buffer bvh_shading_buffer_{gl::NoCreate};
 };
 
 // A buffer holding `data`, or 16 bytes for none (a shader's binding must name a buffer).

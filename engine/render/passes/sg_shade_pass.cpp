@@ -128,6 +128,8 @@ void SgShadePass::SetUniforms(const RenderFrame& fr, const ShadeScene& scene, gl
       .Set("uSurfaceOffset", static_cast<float>(o.surface_offset_voxels * spec.voxel_size))
       .Set("uExactTriangles", o.exact_peak_shadows && fr.geometry ? scene.model.bvh_triangle_count() : 0)
       .Set("uExactRayOffset", detail::ExactRayOffset(spec.voxel_size))
+      .Set("uBvhShadingMaterials",
+           GpuModel::kBvhShadingRowsPerMaterial * static_cast<int>(scene.model.materials().size()))
       .Set("uBounce", o.specular_bounce && fr.geometry ? 1 : 0)
       .Set("uAmbientBounce", ambient.x, ambient.y, ambient.z)
       .Set("uBounceStep", static_cast<float>(o.bounce_step_voxels * spec.voxel_size))
@@ -164,6 +166,7 @@ void SgShadePass::Run(const RenderFrame& fr, const ShadeScene& scene, RenderTarg
   if (o.exact_peak_shadows && scene.model.bvh_triangle_count() > 0) {
     scene.model.bvh_nodes().BindBase(GL_SHADER_STORAGE_BUFFER, 14);
     scene.model.bvh_triangles().BindBase(GL_SHADER_STORAGE_BUFFER, 15);
+    scene.model.bvh_shading_buffer().BindBase(GL_SHADER_STORAGE_BUFFER, 16);
   }
   if (o.ground) {
     sp.Set("uGroundTablePass", 1).Use();

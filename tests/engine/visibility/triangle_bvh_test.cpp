@@ -50,6 +50,48 @@ TEST(TriangleBvh, AgreesWithEveryTriangleTestedAlone) {
   EXPECT_GT(misses, 200);
 }
 
+// ClosestHit: the nearest of the triangles tested alone, its t and barycentrics giving back the
+// hit point, and no hit exactly where Occluded finds none.
+TEST(TriangleBvh, ClosestHitIsTheNearestOfEveryTriangle) {
+  std::vector<glm::vec3> mesh;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (int i = 0; i < 6; ++i) {
+    const glm::vec3 c(u(rng), u(rng), u(rng));
+    auto s = testing::SphereMesh(c, 0.15f + 0.1f * std::abs(u(rng)), 8, 12);
+    mesh.insert(mesh.end(), s.begin(), s.end());
+  }
+  const TriangleBvh bvh(mesh);
+  int hits = 0;
+  for (int i = 0; i < 1000; ++i) {
+    const glm::vec3 o(1.5f * u(rng), 1.5f * u(rng), 1.5f * u(rng));
+    const glm::vec3 d = glm::normalize(mesh[static_cast<std::size_t>(i * 7919) % mesh.size()] - o +
+                                       0.1f * glm::vec3(u(rng), u(rng), u(rng)));
+    // The nearest t by testing ever shorter intervals against each triangle alone.
+    float nearest = 1e30f;
+    for (std::size_t k = 0; k < mesh.size(); k += 3) {
+      const TriangleBvh one(std::span<const glm::vec3>(mesh).subspan(k, 3));
+      TriangleBvh::Hit h;
+      if (one.ClosestHit(o, d, 0.f, nearest, &h)) nearest = h.t;
+    }
+    TriangleBvh::Hit hit;
+    const bool found = bvh.ClosestHit(o, d, 0.f, 1e30f, &hit);
+    ASSERT_EQ(found, bvh.Occluded(o, d, 0.f, 1e30f)) << "ray " << i;
+    if (!found) continue;
+    ++hits;
+    EXPECT_NEAR(hit.t, nearest, 1e-5f * std::max(1.f, nearest)) << "ray " << i;
+    const std::size_t v = 3 * static_cast<std::size_t>(hit.triangle);
+    const glm::vec3 a(bvh.triangles()[v]), b(bvh.triangles()[v + 1]), c(bvh.triangles()[v + 2]);
+    const glm::vec3 at = (1.f - hit.u - hit.v) * a + hit.u * b + hit.v * c;
+    EXPECT_LT(glm::length(at - (o + hit.t * d)), 1e-4f) << "ray " << i;
+    // source_triangles() names the input triangle with those vertices.
+    const std::size_t src =
+        3 * static_cast<std::size_t>(bvh.source_triangles()[static_cast<std::size_t>(hit.triangle)]);
+    EXPECT_EQ(mesh[src], a) << "ray " << i;
+  }
+  EXPECT_GT(hits, 200);
+}
+
 TEST(TriangleBvh, RespectsTheRaysInterval) {
   const auto quad = testing::QuadMesh(glm::vec3(0, 0, 1), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0), 1.f);
   const TriangleBvh bvh(quad);

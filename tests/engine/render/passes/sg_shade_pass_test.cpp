@@ -305,6 +305,53 @@ TEST_F(SgShadePassGL, SpecularBounceShowsAnEmissiveWallInAMirrorFloor) {
   }
 }
 
+// The specular bounce's ray against the triangles (with RenderOptions::exact_peak_shadows) finds
+// what the camera does not see: the mirror floor of the test above, the emissive wall now high
+// and far, above the picture's top edge. The floor mirrors it as it mirrors an open sky of its
+// radiance, on both devices; the G-buffer march alone (the peaks' cones) finds nothing to mirror.
+TEST_F(SgShadePassGL, SpecularBounceShowsAWallOutOfThePicture) {
+  const float radiance = 3.f;
+  const auto scene = [&](bool wall) {
+    scene::GltfScene s;
+    s.materials = {Pbr("floor", {0.5f, 0.5f, 0.5f}, 0.f, 0.5f), Pbr("wall", {0.f, 0.f, 0.f}, 0.f, 1.f)};
+    s.materials[1].emissive_factor = glm::vec3(1.f);
+    s.materials[1].emissive_strength = radiance;
+    s.primitives.push_back(BoxPrimitive({-2.f, -0.05f, -3.4f}, {2.f, 0.f, 2.f}, 0));
+    if (wall) s.primitives.push_back(BoxPrimitive({-3.f, 0.8f, -3.4f}, {3.f, 3.f, -3.2f}, 1));
+    odvr::testing::Finish(&s);
+    return s;
+  };
+  // Looking down at the floor's middle: the picture's top ray passes under the wall.
+  const PinholeCamera view = PinholeCamera::LookAt({0.0, 1.0, 3.0}, {0.0, 0.0, 0.0}, 30, 96, 64);
+  const auto floor_mean = [&](bool wall, bool exact, ShadeDevice device, int* wall_pixels) {
+    RenderOptions o;
+    o.voxel_resolution = 64;
+    o.ground = false;
+    o.exact_peak_shadows = exact;
+    o.materials = {MaterialOverride{"floor", {material::Phong{glm::dvec3(0.5), 1e4}}}};
+    TripleProductRenderer r(scene(wall), glm::dmat4(1.0), o);
+    lighting::SgLighting light;
+    if (!wall) light.constant = glm::vec3(radiance);
+    r.SetLighting(light);
+    const RenderResult res = r.Render(view, device);
+    *wall_pixels = 0;  // pixels brighter than the floor can be: the wall itself
+    for (std::size_t i = 0; i < res.car_alpha.size(); ++i)
+      if (res.car_alpha[i] > 0.5f && res.car.rgb[3 * i] > 2.f) ++*wall_pixels;
+    return MeanOnPlane(view, res, 0.0, -0.4, 0.4, 0.3);
+  };
+  for (ShadeDevice device : {ShadeDevice::kGpu, ShadeDevice::kCpu}) {
+    int seen = 0, unused = 0;
+    const double sky = floor_mean(false, true, device, &unused), rays = floor_mean(true, true, device, &seen),
+                 march = floor_mean(true, false, device, &unused);
+    std::printf("%s: the floor mirroring an open sky %.4f, the hidden wall by rays %.4f, by the march %.4f\n",
+                device == ShadeDevice::kGpu ? "GPU" : "CPU", sky, rays, march);
+    EXPECT_EQ(seen, 0);  // the wall is out of the picture
+    EXPECT_GT(sky, 0.3 * radiance);
+    EXPECT_NEAR(rays / sky, 1.0, 0.1);
+    EXPECT_LT(march, 0.02 * sky);
+  }
+}
+
 TEST_F(SgShadePassGL, FurnaceLambertianSphereUnderConstantLight) {
   RenderOptions o;
   o.voxel_resolution = 64;
