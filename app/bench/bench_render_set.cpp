@@ -275,7 +275,8 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
      << (o.mc_samples > 0 ? " --mc-samples " + std::to_string(o.mc_samples) + (o.mc_exact ? " --mc-exact" : "") : "")
      << "` on " << machine << ". The set: "
      << "`tools/blender/render_reference.py --generalization-set` (every map × model × its own materials, a glossy "
-        "and a diffuse paint × the catcher under the car or none). Each image rendered once at the default "
+        "and a diffuse paint × the catcher under the car or none; the model stood on the ground). Each image rendered "
+        "once at the default "
         "configuration ("
      << kDefaultLevels << " levels, " << kDefaultCones << " cones, " << kDefaultVoxels << "³ voxels, lobes `"
      << DefaultLobes()
