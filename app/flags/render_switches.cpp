@@ -22,7 +22,8 @@ void AddRenderSwitches(CLI::App* sub, render::RenderOptions* options) {
              "Tilt a shading normal whose mirrored view would dive below its triangle, as Cycles does (the default)");
   AddSetFlag(sub, "--raw-normals", &options->valid_reflection_normals, false, "Keep the interpolated normals instead");
   AddSetFlag(sub, "--specular-bounce", &options->specular_bounce, true,
-             "One bounce of the car's specular light on itself, found along the G-buffer (the default)");
+             "One bounce of the car's specular light on itself, found by a ray against the triangles (along the "
+             "G-buffer with --peak-cone-shadows; the default)");
   AddSetFlag(sub, "--no-specular-bounce", &options->specular_bounce, false, "No bounce of the car's light on itself");
   AddSetFlag(sub, "--ambient-bounce", &options->ambient_bounce, true,
              "Where the car hides the light from its own diffuse surfaces, they see the car lit like an average "

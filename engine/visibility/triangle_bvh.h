@@ -1,9 +1,8 @@
 #pragma once
-// Exact ray visibility against the scene's triangles: a bounding-volume hierarchy that the
-// Monte-Carlo baseline (render_mc.comp, RenderOptions::monte_carlo_exact_visibility) traverses
-// for its shadow rays instead of marching the voxel volume. Its only use is attribution: the same
-// estimator with exact and with voxel visibility tells how much of the error against Cycles the
-// voxels cost.
+// Exact rays against the scene's triangles: a bounding-volume hierarchy that the shaders traverse
+// (shaders/triangle_bvh.glsl) where a cone through the voxels is too coarse — the peaks' shadow
+// rays and the specular bounce's ray (render_shade.comp), and the Monte-Carlo baseline's shadow
+// rays (render_mc.comp), which tell how much of the error against Cycles the voxels cost.
 //
 // Layout, shared with the shader: node i is two vec4s, (box min, a) and (box max, count) with a
 // and count stored as int bits (glm::intBitsToFloat). count > 0: a leaf holding triangles
