@@ -116,6 +116,38 @@ TEST(BenchRenderSetGL, OnlyAndTheMonteCarloBaseline) {
       << md;
 }
 
+// An image's world_from_model_odvr places the model (render_reference.py stands a model on the
+// ground with it): the identity scores as the committed image without it does, and the car
+// lifted 100 m shares no pixel with its reference, so nothing is scored.
+TEST(BenchRenderSetGL, TheImagesModelPlacementIsHonoured) {
+  if (!fs::exists(fs::path(ODVR_SHARED_DIR) / "data/env/hall.exr")) GTEST_SKIP() << "the shared maps are absent";
+  ScratchDir d("bench_render_set_placed");
+  fs::create_directories(d.dir / "car");
+  for (const char* f :
+       {"set.json", "hall_diffuse_none.exr", "hall_diffuse_none_mask.exr", "hall_diffuse_none_shadow.exr"})
+    fs::copy_file(kSet / "car" / f, d.dir / "car" / f);
+  const std::string json = ReadText(kSet / "car/hall_diffuse_none.json");
+  const auto run_lifted = [&](const std::string& lift) {
+    std::ofstream(d.dir / "car/hall_diffuse_none.json")
+        << "{\"world_from_model_odvr\": [[1, 0, 0, 0], [0, 1, 0, " << lift << "], [0, 0, 1, 0], [0, 0, 0, 1]], "
+        << json.substr(json.find('{') + 1);
+    return RunOdvr("bench render --set " + d.dir.string() + " --only hall_diffuse_none --out " +
+                   (d.dir / ("out" + lift)).string());
+  };
+  const CliRun committed =
+      RunOdvr("bench render --set " + kSet.string() + " --only hall_diffuse_none --out " + (d.dir / "own").string());
+  const CliRun identity = run_lifted("0");
+  ASSERT_EQ(committed.exit_code, 0) << committed.err;
+  ASSERT_EQ(identity.exit_code, 0) << identity.err;
+  const auto own = TsvRows(d.dir / "own/render_set.tsv"), placed = TsvRows(d.dir / "out0/render_set.tsv");
+  ASSERT_EQ(own.size(), 1u);
+  ASSERT_EQ(placed.size(), 1u);
+  EXPECT_EQ(placed[0][4], own[0][4]) << "mean_rel";
+  const CliRun lifted = run_lifted("100");
+  EXPECT_NE(lifted.exit_code, 0);
+  EXPECT_NE(lifted.err.find("has no car pixel in common with its reference"), std::string::npos) << lifted.err;
+}
+
 TEST(BenchRenderSet, AMalformedSetIsRefusedNamingTheFile) {
   ScratchDir d("bench_render_set_bad");
   const CliRun empty = RunOdvr("bench render --set " + d.dir.string() + " --out " + (d.dir / "out").string());
