@@ -609,25 +609,32 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
   gCount.y += uint(gSet.count);
 }
 
+// Where world point x falls in the G-buffer: −1 off the picture or behind the camera; else its
+// pixel q, and 1 with `behind` = how far x lies behind the car surface there along the camera's
+// axis, 0 where the pixel shows no car.
+int gbufferAt(vec3 x, out ivec2 q, out float behind) {
+  q = ivec2(0);
+  behind = 0.0;
+  vec3 c = transpose(uWorldFromCamera) * (x - uCameraPosition);
+  if (!(c.z > 1e-4)) return -1;  // behind the camera (or not a number)
+  vec2 f = floor(c.xy / c.z * uFocal + 0.5 * vec2(uSize));
+  if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(uSize.x) && f.y < float(uSize.y))) return -1;
+  q = ivec2(f);
+  vec4 gp = imageLoad(uGPosition, q);
+  if (gp.w < 0.5) return 0;
+  behind = c.z - dot(uWorldFromCamera[2], gp.xyz - uCameraPosition);
+  return 1;
+}
+
 // The first car surface the G-buffer shows behind the ray o + t d (t = uBounceStep, 2 uBounceStep,
 // …), by less than uBounceThickness along the camera's axis; false when the ray leaves the picture
 // or the march ends first.
 bool bounceHit(vec3 o, vec3 d, out ivec2 hit) {
-  hit = ivec2(0);
-  mat3 camera_from_world = transpose(uWorldFromCamera);
   for (int s = 1; s <= uBounceSteps; ++s) {
-    vec3 c = camera_from_world * (o + (uBounceStep * float(s)) * d - uCameraPosition);
-    if (!(c.z > 1e-4)) return false;  // behind the camera (or not a number)
-    vec2 f = floor(c.xy / c.z * uFocal + 0.5 * vec2(uSize));
-    if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(uSize.x) && f.y < float(uSize.y))) return false;
-    ivec2 q = ivec2(f);
-    vec4 gp = imageLoad(uGPosition, q);
-    if (gp.w < 0.5) continue;
-    float depth = dot(uWorldFromCamera[2], gp.xyz - uCameraPosition);
-    if (c.z > depth && c.z < depth + uBounceThickness) {
-      hit = q;
-      return true;
-    }
+    float behind;
+    int at = gbufferAt(o + (uBounceStep * float(s)) * d, hit, behind);
+    if (at < 0) return false;
+    if (at > 0 && behind > 0.0 && behind < uBounceThickness) return true;
   }
   return false;
 }
@@ -680,14 +687,8 @@ vec3 bounceRadiance(ivec2 q, vec3 wo_in) {
 
 // The G-buffer pixel that shows world point x (within uBounceThickness along the camera's axis).
 bool gbufferShows(vec3 x, out ivec2 q) {
-  q = ivec2(0);
-  vec3 c = transpose(uWorldFromCamera) * (x - uCameraPosition);
-  if (!(c.z > 1e-4)) return false;
-  vec2 f = floor(c.xy / c.z * uFocal + 0.5 * vec2(uSize));
-  if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(uSize.x) && f.y < float(uSize.y))) return false;
-  q = ivec2(f);
-  vec4 gp = imageLoad(uGPosition, q);
-  return gp.w >= 0.5 && abs(dot(uWorldFromCamera[2], gp.xyz - uCameraPosition) - c.z) < uBounceThickness;
+  float behind;
+  return gbufferAt(x, q, behind) > 0 && abs(behind) < uBounceThickness;
 }
 
 // What the car sends back along −d from the first triangle the ray o + t d hits (the BVH): the

@@ -7,8 +7,10 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <functional>
+#include <glm/matrix.hpp>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -102,7 +104,15 @@ std::optional<SetImage> LoadSetImage(const fs::path& dir, const std::string& nam
     for (std::size_t i = 0; i < r.mask.size(); ++i) r.mask[i] = mask.rgb[3 * i];
     r.camera = CameraFromJson(im.at("camera"));
     // Where the script placed the model (stood on the ground); identity in sets made before it did.
-    if (im.contains("world_from_model_odvr")) r.world_from_model = Matrix4(im.at("world_from_model_odvr"));
+    if (im.contains("world_from_model_odvr")) {
+      r.world_from_model = Matrix4(im.at("world_from_model_odvr"));
+      const glm::dmat3 linear(r.world_from_model);
+      bool finite = true;
+      for (int c = 0; c < 4; ++c)
+        for (int k = 0; k < 4; ++k) finite = finite && std::isfinite(r.world_from_model[c][k]);
+      if (!finite || !(std::abs(glm::determinant(linear)) > 1e-12))
+        throw Error(json_path.string(), "world_from_model_odvr is not a finite, invertible placement");
+    }
     if (s.material != "as-is") {
       const auto& mp = im.at("material_params");
       render::MaterialOverride paint;

@@ -15,6 +15,10 @@
 #include "engine/visibility/triangle_bvh.h"
 #include "engine/visibility/voxel_grid.h"
 
+namespace odvr::render {
+class GpuModel;
+}  // namespace odvr::render
+
 namespace odvr::render::detail {
 
 // Where an exact ray against the triangles starts: this many level-0 voxels off the surface along
@@ -157,10 +161,7 @@ struct ReferenceInputs {
   const lighting::OverlapBins* bins = nullptr;
   const visibility::VoxelGrid* grid = nullptr;   // nullptr: nothing occludes
   const visibility::TriangleBvh* bvh = nullptr;  // RenderOptions::exact_peak_shadows: the peaks' rays
-  float exact_ray_offset = 0;                    // ExactRayOffset of the grid's voxels
-  // With bvh: GpuModel::bvh_shading, its triangles' rows from row bvh_shading_materials.
-  const std::vector<glm::vec4>* bvh_shading = nullptr;
-  int bvh_shading_materials = 0;
+  const GpuModel* model = nullptr;               // with bvh: what its hits are shaded with (bvh_shading)
   RenderOptions options;
   glm::dvec2 ground_centre{0, 0};  // xz
   // Filled by ShadeReference (RenderOptions::ground_lit_map_texels): the ground's lit fraction at

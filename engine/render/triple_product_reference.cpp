@@ -30,6 +30,9 @@ struct ConeSet {
 
 double GroundLitFractionAt(double x, double z, const ReferenceInputs& in);
 
+// uExactRayOffset: ExactRayOffset of the grid's voxels (with a BVH there is a grid).
+float RayOffset(const ReferenceInputs& in) { return in.grid ? ExactRayOffset(in.grid->spec().voxel_size) : 0.f; }
+
 // render_shade.comp's peakRaysVisibility: the share of the peak's rays (PeakRayDirections) from
 // `offset` (ExactRayOffset) along the normal off the surface point that no triangle stops.
 double PeakRaysVisibility(const glm::dvec3& surface, const glm::dvec3& normal, const lighting::RgbSg& peak,
@@ -60,9 +63,8 @@ double GroundLitFractionAt(double x, double z, const ReferenceInputs& in) {
   return GroundLitFraction(glm::dvec3(x, 0, z), *in.lighting, in.options.peak_cones, kGroundLitHalfAngle,
                            visibility::kMaxConeHalfAngle, trace, [&](const glm::dvec3& q, std::size_t k, double a) {
                              const lighting::RgbSg& pk = in.lighting->peaks[k];
-                             return in.bvh
-                                        ? PeakRaysVisibility(q, glm::dvec3(0, 1, 0), pk, *in.bvh, in.exact_ray_offset)
-                                        : trace(q, pk.axis, a);
+                             return in.bvh ? PeakRaysVisibility(q, glm::dvec3(0, 1, 0), pk, *in.bvh, RayOffset(in))
+                                           : trace(q, pk.axis, a);
                            });
 }
 
@@ -233,7 +235,7 @@ void ShadePeaks(const material::Lobe& lobe, const std::vector<double>& peak_visi
 // exact_peak_shadows), or its cone from `p`, the cones' origin off the surface; 1 without geometry.
 double PeakVisibility(const glm::dvec3& p, const glm::dvec3& surface, const glm::dvec3& normal,
                       const lighting::RgbSg& peak, const ReferenceInputs& in) {
-  if (in.bvh) return PeakRaysVisibility(surface, normal, peak, *in.bvh, in.exact_ray_offset);
+  if (in.bvh) return PeakRaysVisibility(surface, normal, peak, *in.bvh, RayOffset(in));
   if (!in.grid) return 1.0;
   const double a = std::min(HalfValueAngle(peak.lambda), visibility::kMaxConeHalfAngle);
   return in.grid->TraceCone({glm::vec3(p), glm::vec3(peak.axis), static_cast<float>(a)}, in.options.trace);
@@ -288,27 +290,36 @@ void AppendMaterialLobes(const ReferenceInputs& in, const GltfSample& gltf, int 
   for (const material::Brdf& brdf : list.terms) add(brdf, term++);
 }
 
+// render_shade.comp's gbufferAt: −1 where world point x is off the picture or behind the camera;
+// else its sample *q, and 1 with *behind = how far x lies behind the car surface there along the
+// camera's axis, 0 where the sample shows no car.
+int GbufferAt(const ReferenceInputs& in, const glm::dvec3& x, std::size_t* q, double* behind) {
+  const GBuffer& g = *in.gbuffer;
+  const glm::dvec3 c = glm::transpose(in.camera.world_from_camera) * (x - in.camera.position);
+  if (!(c.z > 1e-4)) return -1;  // behind the camera (or not a number)
+  const double focal = in.camera.focal_px();
+  const double px = std::floor(c.x / c.z * focal + 0.5 * g.width), py = std::floor(c.y / c.z * focal + 0.5 * g.height);
+  if (!(px >= 0 && py >= 0 && px < g.width && py < g.height)) return -1;
+  *q = static_cast<std::size_t>(py) * static_cast<std::size_t>(g.width) + static_cast<std::size_t>(px);
+  if (g.position[4 * *q + 3] < 0.5f) return 0;
+  const glm::dvec3 surface(g.position[4 * *q], g.position[4 * *q + 1], g.position[4 * *q + 2]);
+  *behind = c.z - glm::dot(in.camera.world_from_camera[2], surface - in.camera.position);
+  return 1;
+}
+
+double BounceThickness(const ReferenceInputs& in) {
+  return in.options.bounce_thickness_voxels * in.grid->spec().voxel_size;
+}
+
 // render_shade.comp's bounceHit: the first car surface the G-buffer shows behind o + t d, t a
 // multiple of the step, by less than the thickness along the camera's axis.
 bool BounceHit(const ReferenceInputs& in, const glm::dvec3& o, const glm::dvec3& d, std::size_t* hit) {
-  const GBuffer& g = *in.gbuffer;
-  const double voxel = in.grid->spec().voxel_size;
-  const double step = in.options.bounce_step_voxels * voxel, thickness = in.options.bounce_thickness_voxels * voxel;
-  const glm::dmat3 camera_from_world = glm::transpose(in.camera.world_from_camera);
-  const double focal = in.camera.focal_px();
+  const double step = in.options.bounce_step_voxels * in.grid->spec().voxel_size, thickness = BounceThickness(in);
   for (int s = 1; s <= in.options.bounce_steps; ++s) {
-    const glm::dvec3 c = camera_from_world * (o + (step * s) * d - in.camera.position);
-    if (!(c.z > 1e-4)) return false;  // behind the camera (or not a number)
-    const double x = std::floor(c.x / c.z * focal + 0.5 * g.width), y = std::floor(c.y / c.z * focal + 0.5 * g.height);
-    if (!(x >= 0 && y >= 0 && x < g.width && y < g.height)) return false;
-    const std::size_t q = static_cast<std::size_t>(y) * static_cast<std::size_t>(g.width) + static_cast<std::size_t>(x);
-    if (g.position[4 * q + 3] < 0.5f) continue;
-    const glm::dvec3 surface(g.position[4 * q], g.position[4 * q + 1], g.position[4 * q + 2]);
-    const double depth = glm::dot(in.camera.world_from_camera[2], surface - in.camera.position);
-    if (c.z > depth && c.z < depth + thickness) {
-      *hit = q;
-      return true;
-    }
+    double behind = 0;
+    const int at = GbufferAt(in, o + (step * s) * d, hit, &behind);
+    if (at < 0) return false;
+    if (at > 0 && behind > 0 && behind < thickness) return true;
   }
   return false;
 }
@@ -363,17 +374,8 @@ glm::dvec3 BounceRadiance(const ReferenceInputs& in, std::size_t q, const glm::d
 // render_shade.comp's gbufferShows: the G-buffer sample that shows world point x, within the
 // bounce's thickness along the camera's axis.
 bool GbufferShows(const ReferenceInputs& in, const glm::dvec3& x, std::size_t* q) {
-  const GBuffer& g = *in.gbuffer;
-  const glm::dvec3 c = glm::transpose(in.camera.world_from_camera) * (x - in.camera.position);
-  if (!(c.z > 1e-4)) return false;
-  const double focal = in.camera.focal_px();
-  const double px = std::floor(c.x / c.z * focal + 0.5 * g.width), py = std::floor(c.y / c.z * focal + 0.5 * g.height);
-  if (!(px >= 0 && py >= 0 && px < g.width && py < g.height)) return false;
-  *q = static_cast<std::size_t>(py) * static_cast<std::size_t>(g.width) + static_cast<std::size_t>(px);
-  if (g.position[4 * *q + 3] < 0.5f) return false;
-  const glm::dvec3 surface(g.position[4 * *q], g.position[4 * *q + 1], g.position[4 * *q + 2]);
-  const double thickness = in.options.bounce_thickness_voxels * in.grid->spec().voxel_size;
-  return std::abs(glm::dot(in.camera.world_from_camera[2], surface - in.camera.position) - c.z) < thickness;
+  double behind = 0;
+  return GbufferAt(in, x, q, &behind) > 0 && std::abs(behind) < BounceThickness(in);
 }
 
 // render_shade.comp's triangleBounce: what the car sends back along −d from the first triangle
@@ -389,9 +391,9 @@ bool TriangleBounce(const ReferenceInputs& in, const glm::dvec3& o, const glm::d
     *radiance = BounceRadiance(in, q, -d);
     return true;
   }
-  const std::vector<glm::vec4>& rows = *in.bvh_shading;
+  const std::vector<glm::vec4>& rows = in.model->bvh_shading();
   const std::size_t row =
-      static_cast<std::size_t>(in.bvh_shading_materials) + 3 * static_cast<std::size_t>(hit.triangle);
+      static_cast<std::size_t>(in.model->bvh_shading_first_triangle_row()) + 3 * static_cast<std::size_t>(hit.triangle);
   const glm::vec4 n0 = rows[row], n1 = rows[row + 1], n2 = rows[row + 2];
   glm::dvec3 n = glm::dvec3((1.f - hit.u - hit.v) * glm::vec3(n0) + hit.u * glm::vec3(n1) + hit.v * glm::vec3(n2));
   const std::vector<glm::vec4>& tris = in.bvh->triangles();
@@ -530,7 +532,7 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
             for (int t = 0; t < kBounceTerms; ++t) {
               if (!(glm::length(bounce_axis[t]) > 0)) continue;
               const glm::dvec3 d = glm::normalize(bounce_axis[t]);
-              const glm::dvec3 o = p + static_cast<double>(in.exact_ray_offset) * n;
+              const glm::dvec3 o = p + static_cast<double>(RayOffset(in)) * n;
               std::size_t hit = 0;
               glm::dvec3 bounced(0);
               if (in.bvh ? TriangleBounce(in, o, d, &bounced) : BounceHit(in, o, d, &hit))

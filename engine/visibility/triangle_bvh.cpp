@@ -31,9 +31,9 @@ int AsInt(float f) {
   return v;
 }
 
-// Möller–Trumbore, both sides; the shader's test is the same. On a hit, *t, *u, *v.
+// Möller–Trumbore, both sides; the shader's test is the same. On a hit, *t_out, *u_out, *v_out.
 bool HitsTriangle(const glm::vec3& o, const glm::vec3& d, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c,
-                  float t_min, float t_max, float* t_out = nullptr, float* u_out = nullptr, float* v_out = nullptr) {
+                  float t_min, float t_max, float* t_out, float* u_out, float* v_out) {
   const glm::vec3 e1 = b - a, e2 = c - a, p = glm::cross(d, e2);
   const float det = glm::dot(e1, p);
   if (det == 0.f) return false;
@@ -46,7 +46,9 @@ bool HitsTriangle(const glm::vec3& o, const glm::vec3& d, const glm::vec3& a, co
   if (v < 0.f || u + v > 1.f) return false;
   const float t = glm::dot(e2, q) * inv;
   if (!(t > t_min && t < t_max)) return false;
-  if (t_out) *t_out = t, *u_out = u, *v_out = v;
+  *t_out = t;
+  *u_out = u;
+  *v_out = v;
   return true;
 }
 
@@ -115,33 +117,16 @@ TriangleBvh::TriangleBvh(std::span<const glm::vec3> vertices) {
 }
 
 bool TriangleBvh::Occluded(const glm::vec3& o, const glm::vec3& d, float t_min, float t_max) const {
-  if (triangles_.empty()) return false;
-  const glm::vec3 inv(1.f / d.x, 1.f / d.y, 1.f / d.z);
-  int stack[kMaxDepth + 1];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const int node = stack[--top];
-    const glm::vec4 lo = nodes_[2 * static_cast<std::size_t>(node)],
-                    hi = nodes_[2 * static_cast<std::size_t>(node) + 1];
-    if (!HitsBox(o, inv, glm::vec3(lo), glm::vec3(hi), t_min, t_max)) continue;
-    const int a = AsInt(lo.w), count = AsInt(hi.w);
-    if (count == 0) {
-      stack[top++] = a;
-      stack[top++] = a + 1;
-      continue;
-    }
-    for (int t = a; t < a + count; ++t) {
-      const std::size_t i = 3 * static_cast<std::size_t>(t);
-      if (HitsTriangle(o, d, glm::vec3(triangles_[i]), glm::vec3(triangles_[i + 1]), glm::vec3(triangles_[i + 2]),
-                       t_min, t_max))
-        return true;
-    }
-  }
-  return false;
+  Hit hit;
+  return Trace(o, d, t_min, t_max, true, &hit);
 }
 
 bool TriangleBvh::ClosestHit(const glm::vec3& o, const glm::vec3& d, float t_min, float t_max, Hit* hit) const {
+  return Trace(o, d, t_min, t_max, false, hit);
+}
+
+bool TriangleBvh::Trace(const glm::vec3& o, const glm::vec3& d, float t_min, float t_max, bool any_hit,
+                        Hit* hit) const {
   *hit = Hit{};
   if (triangles_.empty()) return false;
   const glm::vec3 inv(1.f / d.x, 1.f / d.y, 1.f / d.z);
@@ -166,6 +151,7 @@ bool TriangleBvh::ClosestHit(const glm::vec3& o, const glm::vec3& d, float t_min
       if (HitsTriangle(o, d, glm::vec3(triangles_[i]), glm::vec3(triangles_[i + 1]), glm::vec3(triangles_[i + 2]),
                        t_min, t_max, &th, &u, &v)) {
         *hit = Hit{t, th, u, v};
+        if (any_hit) return true;
         t_max = th;
       }
     }

@@ -44,6 +44,9 @@ class TriangleBvh {
   static constexpr int kMaxDepth = 48;  // the shader's traversal stack holds this many
 
  private:
+  // Occluded (any_hit: the first hit found) and ClosestHit (the nearest) share this traversal.
+  bool Trace(const glm::vec3& o, const glm::vec3& d, float t_min, float t_max, bool any_hit, Hit* hit) const;
+
   std::vector<glm::vec4> nodes_, triangles_;
   std::vector<int> source_;
 };

@@ -30,9 +30,7 @@ void ShadeOnCpu(const RenderFrame& fr, const ShadeScene& scene, const detail::GB
   in.bins = &scene.lighting.bins();
   in.grid = fr.geometry ? scene.voxels.cpu_grid() : nullptr;
   in.bvh = fr.geometry && o.exact_peak_shadows ? scene.model.bvh() : nullptr;
-  if (in.grid) in.exact_ray_offset = detail::ExactRayOffset(in.grid->spec().voxel_size);
-  in.bvh_shading = &scene.model.bvh_shading();
-  in.bvh_shading_materials = GpuModel::kBvhShadingRowsPerMaterial * static_cast<int>(scene.model.materials().size());
+  in.model = &scene.model;
   in.options = o;
   in.ground_centre = fr.ground_centre;
   if (k > 1) {

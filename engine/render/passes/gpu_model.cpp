@@ -1,10 +1,13 @@
 #include "engine/render/passes/gpu_model.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
+
+#include "core/srgb.h"
 
 namespace odvr::render {
 namespace {
@@ -15,11 +18,12 @@ glm::vec4 TextureMean(const scene::GltfScene& model, const scene::TextureRef& re
   const scene::TextureImage& img = model.images[static_cast<std::size_t>(ref.image)];
   const std::size_t texels = img.rgba.size() / 4;
   if (texels == 0) return glm::vec4(1);
+  const std::array<float, 256>& decode = Srgb8ToLinearTable();
   glm::dvec4 sum(0);
   for (std::size_t i = 0; i < texels; ++i)
     for (int c = 0; c < 4; ++c) {
-      const double v = img.rgba[4 * i + static_cast<std::size_t>(c)] / 255.0;
-      sum[c] += srgb && c < 3 ? (v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4)) : v;
+      const std::uint8_t v = img.rgba[4 * i + static_cast<std::size_t>(c)];
+      sum[c] += srgb && c < 3 ? decode[v] : v / 255.0;
     }
   return glm::vec4(sum / static_cast<double>(texels));
 }
@@ -94,7 +98,7 @@ GpuModel::GpuModel(const scene::GltfScene& model, const glm::dmat4& world_from_m
     if (mat.emissive_texture.valid()) Upload(model, mat.emissive_texture.image, true);
     primitives_.push_back(std::move(p));
   }
-  for (const scene::PbrMaterial& m : materials_) AppendMaterialMeans(model, m, &material_means_);
+  for (const scene::PbrMaterial& m : materials_) AppendMaterialMeans(model, m, &bvh_shading_);
   if (has_geometry()) {
     std::vector<glm::vec4> padded(triangles_.size());
     for (std::size_t i = 0; i < padded.size(); ++i) padded[i] = glm::vec4(triangles_[i], 1.f);
@@ -124,7 +128,6 @@ void GpuModel::BuildBvh() {
   bvh_ = std::make_unique<visibility::TriangleBvh>(triangles_);
   bvh_nodes_ = MakeBuffer(bvh_->nodes());
   bvh_triangles_ = MakeBuffer(bvh_->triangles());
-  bvh_shading_ = material_means_;
   for (int t : bvh_->source_triangles())
     for (int k = 0; k < 3; ++k)
       bvh_shading_.emplace_back(triangle_normals_[3 * static_cast<std::size_t>(t) + static_cast<std::size_t>(k)],

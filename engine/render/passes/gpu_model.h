@@ -54,6 +54,9 @@ class GpuModel {
   // w = its material. kBvhShadingRowsPerMaterial × materials().size() rows precede the triangles.
   static constexpr int kBvhShadingRowsPerMaterial = 2;
   const std::vector<glm::vec4>& bvh_shading() const { return bvh_shading_; }
+  int bvh_shading_first_triangle_row() const {
+    return kBvhShadingRowsPerMaterial * static_cast<int>(materials_.size());
+  }
   const gl::Buffer& bvh_shading_buffer() const { return bvh_shading_buffer_; }
   int bvh_triangle_count() const { return bvh_ ? static_cast<int>(bvh_->triangle_count()) : 0; }
 
@@ -67,12 +70,11 @@ class GpuModel {
   std::vector<glm::vec3> triangles_;
   std::vector<glm::vec3> triangle_normals_;  // per vertex of triangles_
   std::vector<int> triangle_materials_;      // per triangle of triangles_
-  std::vector<glm::vec4> material_means_;    // bvh_shading()'s material rows
   scene::Bounds bounds_;
   gl::Buffer triangle_buffer_{gl::NoCreate};
   std::unique_ptr<visibility::TriangleBvh> bvh_;
   gl::Buffer bvh_nodes_{gl::NoCreate}, bvh_triangles_{gl::NoCreate};
-  std::vector<glm::vec4> bvh_shading_;
+  std::vector<glm::vec4> bvh_shading_;  // the materials' rows from the start, the triangles' with the BVH
   gl::Buffer bvh_shading_buffer_{gl::NoCreate};
 };
 

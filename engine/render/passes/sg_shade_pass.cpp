@@ -128,8 +128,7 @@ void SgShadePass::SetUniforms(const RenderFrame& fr, const ShadeScene& scene, gl
       .Set("uSurfaceOffset", static_cast<float>(o.surface_offset_voxels * spec.voxel_size))
       .Set("uExactTriangles", o.exact_peak_shadows && fr.geometry ? scene.model.bvh_triangle_count() : 0)
       .Set("uExactRayOffset", detail::ExactRayOffset(spec.voxel_size))
-      .Set("uBvhShadingMaterials",
-           GpuModel::kBvhShadingRowsPerMaterial * static_cast<int>(scene.model.materials().size()))
+      .Set("uBvhShadingMaterials", scene.model.bvh_shading_first_triangle_row())
       .Set("uBounce", o.specular_bounce && fr.geometry ? 1 : 0)
       .Set("uAmbientBounce", ambient.x, ambient.y, ambient.z)
       .Set("uBounceStep", static_cast<float>(o.bounce_step_voxels * spec.voxel_size))

@@ -146,6 +146,17 @@ TEST(BenchRenderSetGL, TheImagesModelPlacementIsHonoured) {
   const CliRun lifted = run_lifted("100");
   EXPECT_NE(lifted.exit_code, 0);
   EXPECT_NE(lifted.err.find("has no car pixel in common with its reference"), std::string::npos) << lifted.err;
+  // A placement that flattens the model is refused, naming the image's file.
+  std::string flat = ReadText(d.dir / "car/hall_diffuse_none.json");
+  flat.replace(flat.find("[0, 1, 0, 100]"), 14, "[0, 0, 0, 100]");
+  std::ofstream(d.dir / "car/hall_diffuse_none.json") << flat;
+  const CliRun singular =
+      RunOdvr("bench render --set " + d.dir.string() + " --only hall_diffuse_none --out " + (d.dir / "flat").string());
+  EXPECT_NE(singular.exit_code, 0);
+  EXPECT_NE(singular.err.find((d.dir / "car/hall_diffuse_none.json").string() +
+                              ": world_from_model_odvr is not a finite, invertible placement"),
+            std::string::npos)
+      << singular.err;
 }
 
 TEST(BenchRenderSet, AMalformedSetIsRefusedNamingTheFile) {

@@ -19,18 +19,26 @@ bool BruteForce(const std::vector<glm::vec3>& v, const glm::vec3& o, const glm::
   return false;
 }
 
-TEST(TriangleBvh, AgreesWithEveryTriangleTestedAlone) {
-  // Spheres and boxes scattered so that rays pass between, graze and hit them.
+// Six spheres (and, with `boxes`, a box beside each) scattered in [-1, 1]³ so that rays pass
+// between, graze and hit them.
+std::vector<glm::vec3> ScatteredMesh(std::mt19937& rng, bool boxes) {
   std::vector<glm::vec3> mesh;
-  std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-1.f, 1.f);
   for (int i = 0; i < 6; ++i) {
     const glm::vec3 c(u(rng), u(rng), u(rng));
     auto s = testing::SphereMesh(c, 0.15f + 0.1f * std::abs(u(rng)), 8, 12);
     mesh.insert(mesh.end(), s.begin(), s.end());
+    if (!boxes) continue;
     auto b = testing::BoxMesh(c + glm::vec3(0.3f, 0, 0), c + glm::vec3(0.4f, 0.2f, 0.05f));
     mesh.insert(mesh.end(), b.begin(), b.end());
   }
+  return mesh;
+}
+
+TEST(TriangleBvh, AgreesWithEveryTriangleTestedAlone) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  const std::vector<glm::vec3> mesh = ScatteredMesh(rng, true);
   const TriangleBvh bvh(mesh);
   ASSERT_EQ(bvh.triangle_count(), mesh.size() / 3);
   int hits = 0, misses = 0;
@@ -53,14 +61,9 @@ TEST(TriangleBvh, AgreesWithEveryTriangleTestedAlone) {
 // ClosestHit: the nearest of the triangles tested alone, its t and barycentrics giving back the
 // hit point, and no hit exactly where Occluded finds none.
 TEST(TriangleBvh, ClosestHitIsTheNearestOfEveryTriangle) {
-  std::vector<glm::vec3> mesh;
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-1.f, 1.f);
-  for (int i = 0; i < 6; ++i) {
-    const glm::vec3 c(u(rng), u(rng), u(rng));
-    auto s = testing::SphereMesh(c, 0.15f + 0.1f * std::abs(u(rng)), 8, 12);
-    mesh.insert(mesh.end(), s.begin(), s.end());
-  }
+  const std::vector<glm::vec3> mesh = ScatteredMesh(rng, false);
   const TriangleBvh bvh(mesh);
   int hits = 0;
   for (int i = 0; i < 1000; ++i) {

@@ -259,6 +259,20 @@ TEST_F(SgShadePassGL, ValidReflectionNormalsKeepTheMirroredViewAboveTheFace) {
   for (bool valid : {false, true}) EXPECT_NEAR(lum[valid][0], lum[valid][1], 0.02 * lum[1][0] + 1e-4) << valid;
 }
 
+// A floor from floor_lo to (2, 0, 2) and, with `wall`, an emissive box from wall_lo to wall_hi
+// sending `radiance`: the specular bounce's scenes (the floor's paint is overridden there).
+scene::GltfScene MirrorFloorAndWall(float radiance, glm::vec3 floor_lo, glm::vec3 wall_lo, glm::vec3 wall_hi,
+                                    bool wall) {
+  scene::GltfScene s;
+  s.materials = {Pbr("floor", {0.5f, 0.5f, 0.5f}, 0.f, 0.5f), Pbr("wall", {0.f, 0.f, 0.f}, 0.f, 1.f)};
+  s.materials[1].emissive_factor = glm::vec3(1.f);
+  s.materials[1].emissive_strength = radiance;
+  s.primitives.push_back(BoxPrimitive(floor_lo, {2.f, 0.f, 2.f}, 0));
+  if (wall) s.primitives.push_back(BoxPrimitive(wall_lo, wall_hi, 1));
+  odvr::testing::Finish(&s);
+  return s;
+}
+
 // RenderOptions::specular_bounce: a mirror floor (Phong n = 10 000, reflectance 0.5) in front of
 // an emissive wall, in the dark. Where the floor mirrors the wall its cone is blocked, and without
 // the bounce the floor reads black; with it, the floor's lost light is the wall's radiance, which
@@ -267,14 +281,7 @@ TEST_F(SgShadePassGL, ValidReflectionNormalsKeepTheMirroredViewAboveTheFace) {
 TEST_F(SgShadePassGL, SpecularBounceShowsAnEmissiveWallInAMirrorFloor) {
   const float radiance = 3.f;
   const auto scene = [&](bool wall) {
-    scene::GltfScene s;
-    s.materials = {Pbr("floor", {0.5f, 0.5f, 0.5f}, 0.f, 0.5f), Pbr("wall", {0.f, 0.f, 0.f}, 0.f, 1.f)};
-    s.materials[1].emissive_factor = glm::vec3(1.f);
-    s.materials[1].emissive_strength = radiance;
-    s.primitives.push_back(BoxPrimitive({-2.f, -0.05f, -1.2f}, {2.f, 0.f, 2.f}, 0));
-    if (wall) s.primitives.push_back(BoxPrimitive({-2.f, 0.f, -1.2f}, {2.f, 1.5f, -1.f}, 1));
-    odvr::testing::Finish(&s);
-    return s;
+    return MirrorFloorAndWall(radiance, {-2.f, -0.05f, -1.2f}, {-2.f, 0.f, -1.2f}, {2.f, 1.5f, -1.f}, wall);
   };
   const PinholeCamera view = PinholeCamera::LookAt({0.0, 1.0, 3.0}, {0.0, 0.3, -0.5}, 50, 96, 64);
   const auto floor_mean = [&](bool wall, bool bounce, ShadeDevice device, int lanes = 1) {
@@ -312,14 +319,7 @@ TEST_F(SgShadePassGL, SpecularBounceShowsAnEmissiveWallInAMirrorFloor) {
 TEST_F(SgShadePassGL, SpecularBounceShowsAWallOutOfThePicture) {
   const float radiance = 3.f;
   const auto scene = [&](bool wall) {
-    scene::GltfScene s;
-    s.materials = {Pbr("floor", {0.5f, 0.5f, 0.5f}, 0.f, 0.5f), Pbr("wall", {0.f, 0.f, 0.f}, 0.f, 1.f)};
-    s.materials[1].emissive_factor = glm::vec3(1.f);
-    s.materials[1].emissive_strength = radiance;
-    s.primitives.push_back(BoxPrimitive({-2.f, -0.05f, -3.4f}, {2.f, 0.f, 2.f}, 0));
-    if (wall) s.primitives.push_back(BoxPrimitive({-3.f, 0.8f, -3.4f}, {3.f, 3.f, -3.2f}, 1));
-    odvr::testing::Finish(&s);
-    return s;
+    return MirrorFloorAndWall(radiance, {-2.f, -0.05f, -3.4f}, {-3.f, 0.8f, -3.4f}, {3.f, 3.f, -3.2f}, wall);
   };
   // Looking down at the floor's middle: the picture's top ray passes under the wall.
   const PinholeCamera view = PinholeCamera::LookAt({0.0, 1.0, 3.0}, {0.0, 0.0, 0.0}, 30, 96, 64);
