@@ -678,6 +678,10 @@ CommandFn AddBenchRender(CLI::App* sub) {
         throw UsageError(option->get_name(), "is the sweep's; --set renders every image at the default configuration");
     set->only = o->only;
     if (mc_samples->count() > 0) set->mc_samples = *std::max_element(o->mc_samples.begin(), o->mc_samples.end());
+    if (set->mc_samples > 0 && set->mc_samples < render::kStillSupersample * render::kStillSupersample)
+      throw UsageError("--mc-samples", "with --set at least " +
+                                           std::to_string(render::kStillSupersample * render::kStillSupersample) +
+                                           ": a ray for each of a pixel's samples");
     set->mc_exact = o->mc_exact;
     set->mc_seed = o->mc_seed;
     set->ground_bounce = o->ground_bounce;

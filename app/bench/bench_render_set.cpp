@@ -245,7 +245,8 @@ std::string McSection(const std::vector<SetRow>& rows, const BenchRenderSetOptio
   for (const SetRow& r : rows) all.push_back(&r);
   std::ostringstream md;
   md << "\n## The Monte-Carlo baseline on the same images\n\n"
-     << o.mc_samples << " samples per pixel, seed " << o.mc_seed << ", visibility "
+     << o.mc_samples << " samples per pixel (over every one of its " << render::kStillSupersample << "×"
+     << render::kStillSupersample << " samples), seed " << o.mc_seed << ", visibility "
      << (o.mc_exact ? "by shadow rays against the triangles" : "through the same voxels as the SG rows")
      << ", the same lighting map.\n\n| set | images | error median | error p90 | bias median | bias p10–p90 | "
         "upper half: error | lower quarter: error | reference noise | shade ms |\n"
@@ -289,8 +290,9 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
         "once at the default "
         "configuration ("
      << kDefaultLevels << " levels, " << kDefaultCones << " cones, " << kDefaultVoxels << "³ voxels, lobes `"
-     << DefaultLobes()
-     << "`, 1×1). Errors as `render.md` defines them, on car pixels: `error` = mean relative "
+     << DefaultLobes() << "`, " << render::kStillSupersample << "×" << render::kStillSupersample
+     << " samples where a pixel needs them, contrast " << render::RenderOptions{}.supersample_contrast
+     << ", as `odvr render`). Errors as `render.md` defines them, on car pixels: `error` = mean relative "
         "error, `bias` = ΣY / ΣY_ref; the regions split the car's silhouette by image rows: its upper half and "
         "its lower quarter (sills, tyres, the lower bumper). `reference noise`: the reference's own Monte-Carlo noise "
         "as a mean relative error on car pixels "
@@ -332,11 +334,14 @@ int RunBenchRenderSet(const BenchRenderSetOptions& o) {
   BenchProgress progress("bench render --set", static_cast<long>(images.size()));
   for (const SetImage& s : images) {
     SetRow r{s.model, s.map, s.material, s.ground, s.ref_noise, {}, std::nullopt};
+    // The still's sampling, adaptive at the renderer's contrast; the Monte-Carlo rows spread the
+    // same rays per pixel over every sample.
+    const double contrast = render::RenderOptions{}.supersample_contrast;
     r.row = RenderRow(o.switches, s.ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, lobes, 0, 0, 1,
-                      o.images_dir);
+                      o.images_dir, render::kStillSupersample, contrast);
     if (o.mc_samples > 0)
       r.mc = RenderRow(o.switches, s.ref, o.mc_exact ? "mc-exact" : "mc", kDefaultLevels, 1, kDefaultVoxels,
-                       o.mc_samples, lobes, 0, 0, o.mc_seed, o.images_dir);
+                       o.mc_samples, lobes, 0, 0, o.mc_seed, o.images_dir, render::kStillSupersample, contrast);
     if (r.row.car_pixels == 0) {
       spdlog::warn("bench render --set: {} has no car pixel in common with its reference: left out", s.ref.name);
     } else {

@@ -33,7 +33,7 @@ struct RenderCliOptions {
   int levels = 5;
   int cones = 7;
   int voxels = 128;
-  int supersample = 1;
+  int supersample = render::kStillSupersample;
   double supersample_contrast = render::RenderOptions{}.supersample_contrast;
   std::string size = "640x360";
   std::string camera;
@@ -304,9 +304,11 @@ CommandFn AddRender(CLI::App* sub) {
   sub->add_option("--voxels", o->voxels, "Voxel resolution per side: 64, 128, 256 or 512")
       ->check(CLI::IsMember({64, 128, 256, 512}));
   sub->add_option("--size", o->size, "Output WIDTHxHEIGHT");
-  sub->add_option("--supersample", o->supersample,
-                  "Shade KxK samples per pixel, resolved with Cycles' pixel filter (K² the shading time)")
-      ->check(CLI::Range(1, render::kMaxSupersample));
+  const CLI::Option* supersample =
+      sub->add_option("--supersample", o->supersample,
+                      "Shade KxK samples per pixel where a pixel needs them (--supersample-contrast), resolved with "
+                      "Cycles' pixel filter (up to K² the shading time)")
+          ->check(CLI::Range(1, render::kMaxSupersample));
   sub->add_option("--supersample-contrast", o->supersample_contrast,
                   "Shade every sample only of pixels whose surfaces differ or whose luminance differs from a "
                   "neighbour's by more than this fraction (0: every pixel)")
@@ -340,7 +342,11 @@ CommandFn AddRender(CLI::App* sub) {
        {"--levels", "--cones", "--voxels", "--size", "--supersample", "--supersample-contrast", "--camera",
         "--overlap-cutoff", "--ground-lit-map", "--shading-rate", "--device", "--shade-lanes", "--repeat"})
     sub->get_option(name)->capture_default_str();
-  return [o] { return RunRender(*o); };
+  return [o, supersample] {
+    // Half-rate shading and supersampling exclude each other: --shading-rate 2 alone shades 1×1.
+    if (o->switches.shading_rate == 2 && supersample->count() == 0) o->supersample = 1;
+    return RunRender(*o);
+  };
 }
 
 }  // namespace odvr::app

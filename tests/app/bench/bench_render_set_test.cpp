@@ -112,8 +112,15 @@ TEST(BenchRenderSetGL, OnlyAndTheMonteCarloBaseline) {
   }
   const std::string md = ReadText(d.dir / "render_set.md");
   EXPECT_NE(md.find("## The Monte-Carlo baseline on the same images"), std::string::npos) << md;
-  EXPECT_NE(md.find("4 samples per pixel, seed 1, visibility by shadow rays against the triangles"), std::string::npos)
+  EXPECT_NE(md.find("4 samples per pixel (over every one of its 2×2 samples), seed 1, visibility by shadow rays "
+                    "against the triangles"),
+            std::string::npos)
       << md;
+  // Fewer rays than a pixel has samples: refused before anything is rendered.
+  const CliRun few = RunOdvr("bench render --set " + kSet.string() + " --only hall_diffuse --mc-samples 2 --out " +
+                             (d.dir / "few").string());
+  EXPECT_EQ(few.exit_code, 2) << few.err;
+  EXPECT_NE(few.err.find("--mc-samples"), std::string::npos) << few.err;
 }
 
 // An image's world_from_model_odvr places the model (render_reference.py stands a model on the

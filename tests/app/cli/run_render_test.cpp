@@ -137,7 +137,8 @@ TEST(RunRender, ListOptionsReachTheRenderer) {
 }
 
 // --shading-rate 2 shades one pixel of each smooth 2x2 block: fewer pixels shaded, the option
-// echoed in the JSON, and only 1 or 2 accepted.
+// echoed in the JSON, and only 1 or 2 accepted. Given alone it drops the still's default 2×2
+// supersampling, which it excludes.
 TEST(RunRender, HalfShadingRateShadesFewerPixels) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_rate");
@@ -146,6 +147,7 @@ TEST(RunRender, HalfShadingRateShadesFewerPixels) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json c = nlohmann::json::parse(r.out).at("counts");
   EXPECT_EQ(c.at("shading_rate").get<int>(), 2);
+  EXPECT_EQ(c.at("supersample").get<int>(), 1);
   EXPECT_GT(c.at("pixels_sampled_fully").get<int>(), 96 * 54 / 4);
   EXPECT_LT(c.at("pixels_sampled_fully").get<int>(), 96 * 54);
   const CliRun bad = RunOdvr("render " + kArgs + " --size 64x36 --shading-rate 3 --out " + (d.dir / "x.png").string());
@@ -170,7 +172,7 @@ TEST(RunRender, CpuAndGpuAgree) {
 
 // --supersample 2 with --supersample-contrast 0: four shaded samples per pixel (the counts say so),
 // the output at --size, and the car's outline with partial coverage where point sampling has
-// none. By default (adaptive) the pixels that need them get their four, the others one.
+// none. By default (2×2, adaptive) the pixels that need them get their four, the others one.
 TEST(RunRender, SupersampleShadesFourSamplesPerPixelAndSoftensTheOutline) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_ss");
@@ -178,7 +180,7 @@ TEST(RunRender, SupersampleShadesFourSamplesPerPixelAndSoftensTheOutline) {
     std::string args;
     int car = 0, partial = 0, fully = 0;
   };
-  Run runs[] = {{"--supersample 1"}, {"--supersample 2 --supersample-contrast 0"}, {"--supersample 2"}};
+  Run runs[] = {{"--supersample 1"}, {"--supersample 2 --supersample-contrast 0"}, {""}};
   for (std::size_t i = 0; i < 3; ++i) {
     Run& run = runs[i];
     const std::string dir = (d.dir / std::to_string(i)).string();
@@ -214,7 +216,7 @@ TEST(RunRender, ACarOutsideTheViewIsAWarningNamingIt) {
       RunOdvr("render --model " + kCar + " --env " + kPano +
               " --camera -7,2.06,0.1,-20,0.7,0,43 --levels 2 --size 64x32 --out " + (d.dir / "away.png").string());
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("0 car pixels"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0 shaded car samples"), std::string::npos) << r.out;
   EXPECT_NE(r.err.find("away.png: the car (" + kCar + ") covers no pixel of the view"), std::string::npos) << r.err;
   // Scaled past what its voxel grid holds: an error naming the model, not "voxel size: inf".
   const CliRun huge = RunOdvr("render " + kArgs + " --model-matrix 1e30,0,0,0,0,1,0,0,0,0,1,0 --size 64x32 --out " +
