@@ -532,8 +532,9 @@ void tracePeakCones(vec3 p, out float peak_visibility[kMaxPeaks], inout uvec4 co
 }
 
 // RenderOptions::specular_bounce, per material term (TripleProductRenderer::kTermsPerMaterial):
-// Σ over its specular lobes of weight · ∫ lobe · (1 − visible share), and their axes weighted by
-// that (luminance): the light the term's cones lose to the car, and where it comes from.
+// Σ over its specular lobes (GGX tails included) of weight · ∫ lobe · (1 − visible share), and
+// their axes weighted by that (luminance): the light the term's cones lose to the car, and where
+// it comes from.
 const int kBounceTerms = 2;
 int gTerm;
 vec3 gBounceWeight[kBounceTerms];
@@ -591,7 +592,9 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
     gRadiance += weight * occluder * (clampedCosineLobeIntegral(vec3(0, 1, 0), 0.0, q) * (1.0 - v));
     gCount.z += uint(gSet.count);
   }
-  if (uBounce != 0 && !cosine && tail_share <= 0.0 && !gSet.all_visible) {
+  if (uBounce != 0 && !cosine && !gSet.all_visible) {
+    // A GGX tail's loss too: the tail is the lobe's wide part, the one that meets the car most,
+    // and the light it loses there is the car's as much as the peak's is.
     SgProduct q;
     q.axis = axis;
     q.lambda = lambda;

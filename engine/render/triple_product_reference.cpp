@@ -511,7 +511,7 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
                 radiance += weight * occluder * (FullIntegral(lobe, Sg{{0, 1, 0}, 0.0, 1.0}) * (1.0 - v));
                 count.triples += static_cast<unsigned>(set.cones.size());
               }
-              if (bounce && !cosine && lobe.tail_share <= 0 && !set.all_visible) {
+              if (bounce && !cosine && !set.all_visible) {  // GGX tails too (render_shade.comp)
                 const glm::dvec3 lost = weight * (lighting::Integral(unit) * (1.0 - VisibleShare(unit, set)));
                 const int t = std::min(lobe_term[li], kBounceTerms - 1);
                 bounce_weight[t] += lost;

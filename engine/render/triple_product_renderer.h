@@ -108,7 +108,8 @@ struct RenderOptions {
   // all but one scene. Off: the interpolated normal as it is.
   bool valid_reflection_normals = true;
   // One bounce of the car's specular light on itself: where a term's specular lobes are occluded
-  // (their cones meet the car), a ray along their occlusion-weighted mean direction finds the car
+  // (their cones meet the car; a GGX tail's as much as its peak's), a ray along their
+  // occlusion-weighted mean direction finds the car
   // surface they see, which is shaded for the view back along it — its specular lobes only, under
   // the peaks (each shadowed from there as the pixel's own), the constant and the lighting's
   // levels 0–1 — and seen through the occluded part of the lobes. With exact_peak_shadows the ray
