@@ -594,15 +594,20 @@ void emitLobe(vec3 axis, float lambda, float tail_share, vec3 weight, bool cosin
   }
   if (uBounce != 0 && !cosine && !gSet.all_visible) {
     // A GGX tail's loss too: the tail is the lobe's wide part, the one that meets the car most,
-    // and the light it loses there is the car's as much as the peak's is.
-    SgProduct q;
-    q.axis = axis;
-    q.lambda = lambda;
-    q.log_amplitude = 0.0;
-    vec3 lost = weight * (sgIntegral(lambda) * (1.0 - visibleShare(q, gSet)));
+    // and the light it loses there is the car's as much as the peak's is. Its visible share was
+    // traced above (gLobeShare); a peak lobe's is traced here.
+    float visible = gLobeShare;
+    if (visible < 0.0) {
+      SgProduct q;
+      q.axis = axis;
+      q.lambda = lambda;
+      q.log_amplitude = 0.0;
+      visible = visibleShare(q, gSet);
+      gCount.z += uint(gSet.count);
+    }
+    vec3 lost = weight * (sgIntegral(lambda) * (1.0 - visible));
     gBounceWeight[gTerm] += lost;
     gBounceAxis[gTerm] += axis * dot(lost, vec3(0.2126, 0.7152, 0.0722));
-    gCount.z += uint(gSet.count);
   }
   if (uPeakCones != 0)
     for (int k = 0; k < kMaxPeaks; ++k)

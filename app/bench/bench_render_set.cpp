@@ -330,13 +330,13 @@ int RunBenchRenderSet(const BenchRenderSetOptions& o) {
   std::string machine = BenchMachineDescription() + ", GL: " + context.Info().renderer;
   for (const std::string& flag : NonDefaultRenderSwitches(o.switches)) machine += "; " + flag;
   const material::LobeOptions lobes = render::RenderOptions{}.lobes;
+  // The still's sampling, adaptive at the renderer's contrast; the Monte-Carlo rows spread the
+  // same rays per pixel over every sample.
+  const double contrast = render::RenderOptions{}.supersample_contrast;
   std::vector<SetRow> rows;
   BenchProgress progress("bench render --set", static_cast<long>(images.size()));
   for (const SetImage& s : images) {
     SetRow r{s.model, s.map, s.material, s.ground, s.ref_noise, {}, std::nullopt};
-    // The still's sampling, adaptive at the renderer's contrast; the Monte-Carlo rows spread the
-    // same rays per pixel over every sample.
-    const double contrast = render::RenderOptions{}.supersample_contrast;
     r.row = RenderRow(o.switches, s.ref, "sg", kDefaultLevels, kDefaultCones, kDefaultVoxels, 0, lobes, 0, 0, 1,
                       o.images_dir, render::kStillSupersample, contrast);
     if (o.mc_samples > 0)

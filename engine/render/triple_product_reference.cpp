@@ -516,7 +516,8 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
                 const int t = std::min(lobe_term[li], kBounceTerms - 1);
                 bounce_weight[t] += lost;
                 bounce_axis[t] += lobe.sg.axis * glm::dot(lost, glm::dvec3(0.2126, 0.7152, 0.0722));
-                count.triples += static_cast<unsigned>(set.cones.size());
+                // A tail's share is ShadeLobe's, counted there; the GPU reuses it.
+                if (lobe.tail_share <= 0) count.triples += static_cast<unsigned>(set.cones.size());
               }
               for (std::size_t k = 0; k < peak_sum.size(); ++k)
                 peak_sum[k] +=
