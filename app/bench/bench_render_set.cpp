@@ -176,6 +176,24 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
   return images;
 }
 
+// What render_reference.py left out of each model's images and why (set.json's "left_out", absent
+// in sets made before it had any): one bullet per model and material kind, or "" when nothing was.
+std::string LeftOutNotes(const fs::path& set_dir) {
+  std::string notes;
+  std::vector<fs::path> models;
+  for (const auto& entry : fs::directory_iterator(set_dir))
+    if (fs::exists(entry.path() / "set.json")) models.push_back(entry.path());
+  std::sort(models.begin(), models.end());
+  for (const fs::path& dir : models) {
+    const nlohmann::json js = ReadJsonFile(dir / "set.json");
+    if (!js.contains("left_out") || !js.at("left_out").is_object()) continue;
+    for (const auto& [kind, why] : js.at("left_out").items())
+      notes +=
+          "- " + dir.filename().string() + ", " + kind + ": " + (why.is_string() ? why.get<std::string>() : "") + ".\n";
+  }
+  return notes.empty() ? notes : "Left out of the set, with the reason `render_reference.py` gave:\n\n" + notes + "\n";
+}
+
 std::string F(double v, int digits = 3) { return fmt::format("{:.{}f}", v, digits); }
 
 // One line of a distribution table: the rows' count, the car's error (median, 90th percentile),
@@ -298,6 +316,7 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
         "as a mean relative error on car pixels "
         "(from its two seeds' renders: |a − b| / √2 per pixel, over √2 for their mean); an error near it is "
         "noise, not the model.\n\n"
+     << LeftOutNotes(o.set_dir)
      << "| set | images | error median | error p90 | bias median | bias p10–p90 | upper half: error | lower "
         "quarter: error | reference noise | shade ms |\n|---|---|---|---|---|---|---|---|---|---|\n"
      << DistributionLine("all", all, SgRow) << GroupTable("material", rows, [](const SetRow& r) { return r.material; })

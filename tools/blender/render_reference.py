@@ -12,7 +12,8 @@ Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
     blender -b --factory-startup --python tools/blender/render_reference.py -- --reference-set media/reference
 
   the generalization set, one model per run, resumable (a finished image is skipped):
-    for car in media/demo/car.glb ../shared/data/gltf/kenney/police/police.glb ../shared/data/gltf/ToyCar.glb; do
+    for car in media/demo/car.glb ../shared/data/gltf/kenney/police/police.glb ../shared/data/gltf/ToyCar.glb \
+               ../shared/data/gltf/DamagedHelmet/DamagedHelmet.gltf; do
       blender -b --factory-startup --python tools/blender/render_reference.py -- \
           --generalization-set /tmp/gen --model "$car"
     done
@@ -20,7 +21,9 @@ Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
     both ground set-ups: "catcher" (the plane below, as above) and "none" (the model alone under
     the whole map, odvr render's default). The model stands on the ground: lifted so that its
     lowest point is at y = 0 (world_from_model_odvr in each image's JSON). The camera frames the model as odvr render's default
-    camera does (from its front-left, a little above, 3.2 bounding radii off, 40 degrees).
+    camera does (from its front-left, a little above, 3.2 bounding radii off, 40 degrees). A model
+    with a material that Blender's importer renders as another one (NOT_RENDERED_AS_SPECIFIED:
+    ToyCar's sheen) gets no images of its own materials; set.json's "left_out" says why.
 
   the orientation check of the environment map (writes DIR/verify_env.json):
     blender -b --factory-startup --python tools/blender/render_reference.py -- --verify-env media/reference
@@ -687,6 +690,39 @@ def default_camera(box_odvr, vfov_deg=40.0):
     return [*map(float, eye), *map(float, centre), vfov_deg]
 
 
+# glTF material extensions that Blender 3.4's importer turns into a different material, so that a
+# Cycles render of the model's own materials is not a reference for a renderer that follows the
+# glTF specification. KHR_materials_sheen: the importer adds a Velvet BSDF (Ashikhmin's lobe, its
+# colour the sheen colour) on top of the whole base layer, where the specification layers a
+# Charlie lobe over the base scaled down by the sheen's albedo; ToyCar's red sheen on grey cloth
+# renders saturated red in Cycles and a dim red rim per the specification.
+NOT_RENDERED_AS_SPECIFIED = {
+    "KHR_materials_sheen": "Blender 3.4's importer adds a Velvet BSDF on top of the base layer instead of the "
+                           "specification's Charlie sheen over a base scaled by the sheen's albedo",
+}
+
+
+def gltf_json(path):
+    """The glTF's JSON: the file itself (.gltf) or a .glb's first chunk."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if data[:4] != b"glTF":
+        return json.loads(data.decode("utf-8"))
+    length = int.from_bytes(data[12:16], "little")
+    return json.loads(data[20:20 + length].decode("utf-8"))
+
+
+def materials_not_rendered_as_specified(path):
+    """{material name: why} for the model's materials whose extensions Cycles cannot render as the
+    glTF specification defines them (NOT_RENDERED_AS_SPECIFIED)."""
+    out = {}
+    for i, m in enumerate(gltf_json(path).get("materials", [])):
+        for ext in m.get("extensions", {}):
+            if ext in NOT_RENDERED_AS_SPECIFIED:
+                out[m.get("name", f"material {i}")] = f"{ext}: {NOT_RENDERED_AS_SPECIFIED[ext]}"
+    return out
+
+
 GENERALIZATION = {"size": (320, 180), "spp": 256, "seeds": [1, 2], "materials": ["as-is", "glossy", "diffuse"],
                   "grounds": ["catcher", "none"], "catcher_albedo": 0.18}
 
@@ -695,6 +731,14 @@ def generalization_set(out_root, model, envs_dir, threads, spp=None, size=None):
     """One model under every map, material and ground; DIR/<model>/set.json lists what is done.
     An image whose JSON exists is kept, so an interrupted run goes on where it stopped."""
     g = dict(GENERALIZATION, spp=spp or GENERALIZATION["spp"], size=tuple(size or GENERALIZATION["size"]))
+    # A model whose own materials Cycles would render as another material has no "as-is"
+    # reference: the paints still measure its geometry, and set.json says what was left out.
+    left_out = {}
+    unfaithful = materials_not_rendered_as_specified(model)
+    if unfaithful:
+        g["materials"] = [m for m in g["materials"] if m != "as-is"]
+        left_out["as-is"] = "; ".join(f"{name}: {why}" for name, why in sorted(unfaithful.items()))
+        print(f"render_reference.py: {model}: its own materials left out ({left_out['as-is']})", flush=True)
     model_name = os.path.splitext(os.path.basename(model))[0]
     out_dir = os.path.join(out_root, model_name)
     # A model inside the repository is named relative to it, so that a committed set is found
@@ -733,7 +777,8 @@ def generalization_set(out_root, model, envs_dir, threads, spp=None, size=None):
                 "camera": camera, "settings": g,
                 "catcher": {"plane": "y = 0, 60 x 60 m centred at the origin, Cycles shadow catcher",
                             "albedo_seen_by_the_car": g["catcher_albedo"]},
-                "seconds_this_run": round(time.time() - t0, 1), "images": [e["name"] for e in entries]})
+                "seconds_this_run": round(time.time() - t0, 1), "images": [e["name"] for e in entries],
+                "left_out": left_out})
 
 
 

@@ -125,14 +125,17 @@ TEST(BenchRenderSetGL, OnlyAndTheMonteCarloBaseline) {
 
 // An image's world_from_model_odvr places the model (render_reference.py stands a model on the
 // ground with it): the identity scores as the committed image without it does, and the car
-// lifted 100 m shares no pixel with its reference, so nothing is scored.
+// lifted 100 m shares no pixel with its reference, so nothing is scored. What set.json says was
+// left out of a model's images (render_reference.py's "left_out") is on the page, with its reason.
 TEST(BenchRenderSetGL, TheImagesModelPlacementIsHonoured) {
   if (!fs::exists(fs::path(ODVR_SHARED_DIR) / "data/env/hall.exr")) GTEST_SKIP() << "the shared maps are absent";
   ScratchDir d("bench_render_set_placed");
   fs::create_directories(d.dir / "car");
-  for (const char* f :
-       {"set.json", "hall_diffuse_none.exr", "hall_diffuse_none_mask.exr", "hall_diffuse_none_shadow.exr"})
+  for (const char* f : {"hall_diffuse_none.exr", "hall_diffuse_none_mask.exr", "hall_diffuse_none_shadow.exr"})
     fs::copy_file(kSet / "car" / f, d.dir / "car" / f);
+  const std::string set_json = ReadText(kSet / "car/set.json");
+  std::ofstream(d.dir / "car/set.json") << "{\"left_out\": {\"as-is\": \"its paint is not what Cycles renders\"}, "
+                                        << set_json.substr(set_json.find('{') + 1);
   const std::string json = ReadText(kSet / "car/hall_diffuse_none.json");
   const auto run_lifted = [&](const std::string& lift) {
     std::ofstream(d.dir / "car/hall_diffuse_none.json")
@@ -150,6 +153,9 @@ TEST(BenchRenderSetGL, TheImagesModelPlacementIsHonoured) {
   ASSERT_EQ(own.size(), 1u);
   ASSERT_EQ(placed.size(), 1u);
   EXPECT_EQ(placed[0][4], own[0][4]) << "mean_rel";
+  const std::string note = "- car, as-is: its paint is not what Cycles renders.";
+  EXPECT_NE(ReadText(d.dir / "out0/render_set.md").find(note), std::string::npos);
+  EXPECT_EQ(ReadText(d.dir / "own/render_set.md").find("Left out of the set"), std::string::npos);
   const CliRun lifted = run_lifted("100");
   EXPECT_NE(lifted.exit_code, 0);
   EXPECT_NE(lifted.err.find("has no car pixel in common with its reference"), std::string::npos) << lifted.err;
