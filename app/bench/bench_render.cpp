@@ -664,18 +664,22 @@ CommandFn AddBenchRender(CLI::App* sub) {
   AddRenderSwitches(sub, &o->switches);
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go (docs/benchmarks: the committed pages)")
       ->capture_default_str();
-  sweep_only.push_back(
-      sub->add_flag("--report-only", o->report_only, "Rewrite the table and plot from the TSV already in --out"));
+  CLI::Option* report_only = sub->add_flag(
+      "--report-only", o->report_only,
+      "Rewrite the table and plot from the TSV already in --out (with --set: the run's --mc-samples and --mc-exact)");
   auto set = std::make_shared<BenchRenderSetOptions>();
   sub->add_option("--set", set->set_dir,
                   "Instead of the sweep: the default configuration over a generalization set (render_reference.py "
                   "--generalization-set's folder), as distributions by map, model, material, ground and region");
   sub->add_option("--envs", set->envs_dir, "The set's maps (default ../shared/data/env)");
-  return [o, set, mc_samples, sweep_only] {
+  return [o, set, mc_samples, sweep_only, report_only] {
     if (set->set_dir.empty()) return RunBenchRender(*o);
     for (const CLI::Option* option : sweep_only)
       if (option->count() > 0)
         throw UsageError(option->get_name(), "is the sweep's; --set renders every image at the default configuration");
+    if (report_only->count() > 0 && (!o->only.empty() || !o->images_dir.empty()))
+      throw UsageError("--report-only", "renders nothing: no --only or --images with it");
+    set->report_only = o->report_only;
     set->only = o->only;
     if (mc_samples->count() > 0) set->mc_samples = *std::max_element(o->mc_samples.begin(), o->mc_samples.end());
     if (set->mc_samples > 0 && set->mc_samples < render::kStillSupersample * render::kStillSupersample)

@@ -9,13 +9,16 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <glm/matrix.hpp>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
+#include <string>
 #include <vector>
 
 #include "app/bench/render_rows.h"
@@ -179,6 +182,7 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
 // What render_reference.py left out of each model's images and why (set.json's "left_out", absent
 // in sets made before it had any): one bullet per model and material kind, or "" when nothing was.
 std::string LeftOutNotes(const fs::path& set_dir) {
+  if (!fs::is_directory(set_dir)) throw Error(set_dir.string(), "is not a directory");
   std::string notes;
   std::vector<fs::path> models;
   for (const auto& entry : fs::directory_iterator(set_dir))
@@ -209,9 +213,13 @@ std::string DistributionLine(const std::string& label, const std::vector<const S
     lower.push_back(row.lower_mean_rel);
     ms.push_back(row.shade_ms);
   }
+  // A TSV written before a column existed reads it as NaN: "–", not a median of what is unknown.
+  const auto median = [](const std::vector<double>& v) {
+    return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }) ? F(Median(v)) : "–";
+  };
   return fmt::format("| {} | {} | {} | {} | {} | {}–{} | {} | {} | {} | {} |\n", label, rows.size(), F(Median(err)),
                      F(Quantile(err, 0.9)), F(Median(bias)), F(Quantile(bias, 0.1)), F(Quantile(bias, 0.9)),
-                     F(Median(upper)), F(Median(lower)), F(Median(noise)), F(Median(ms), 1));
+                     median(upper), F(Median(lower)), F(Median(noise)), F(Median(ms), 1));
 }
 
 // A table of the rows grouped by `key`, one line per value and one for all.
@@ -283,7 +291,7 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
   t << "# odvr bench render --set on " << machine
     << "\n# model\tmap\tmaterial\tground\tmean_rel\trel_l1\tbias\tupper_mean_rel\tupper_bias\tlower_mean_rel\t"
        "lower_bias\tssim\tshadow_mae\tcar_pixels\tshade_ms\ttotal_ms\tref_noise"
-    << (o.mc_samples > 0 ? "\tmc_mean_rel\tmc_bias\tmc_lower_mean_rel\tmc_shade_ms\n" : "\n");
+    << (o.mc_samples > 0 ? "\tmc_mean_rel\tmc_bias\tmc_lower_mean_rel\tmc_shade_ms\tmc_upper_mean_rel\n" : "\n");
   for (const SetRow& s : rows) {
     const Row& r = s.row;
     t << s.model << "\t" << s.map << "\t" << s.material << "\t" << s.ground << "\t" << r.mean_rel << "\t" << r.rel_l1
@@ -291,7 +299,8 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
       << r.lower_bias << "\t" << r.ssim << "\t" << r.shadow_mae << "\t" << r.car_pixels << "\t" << r.shade_ms << "\t"
       << r.total_ms << "\t" << s.ref_noise;
     if (s.mc)
-      t << "\t" << s.mc->mean_rel << "\t" << s.mc->bias << "\t" << s.mc->lower_mean_rel << "\t" << s.mc->shade_ms;
+      t << "\t" << s.mc->mean_rel << "\t" << s.mc->bias << "\t" << s.mc->lower_mean_rel << "\t" << s.mc->shade_ms
+        << "\t" << s.mc->upper_mean_rel;
     t << "\n";
   }
   WriteTextAtomically(fs::path(o.out_dir) / "render_set.tsv", t.str());
@@ -338,9 +347,72 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
   WritePlot(o.out_dir, "render_set", 900, 560, gp.str(), "bench render --set");
 }
 
+// The rows of a render_set.tsv that WriteSetReport wrote, and its machine line: 17 columns, 22
+// with the Monte-Carlo baseline's (21 before its upper-half error was written: NaN here).
+std::vector<SetRow> ReadSetRows(const fs::path& tsv, bool* with_mc, std::string* machine) {
+  std::ifstream in(tsv);
+  if (!in) throw Error(tsv.string(), "cannot be read");
+  const std::string tag = "# odvr bench render --set on ";
+  std::vector<SetRow> rows;
+  *with_mc = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind(tag, 0) == 0) *machine = line.substr(tag.size());
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> v;
+    std::istringstream fields(line);
+    for (std::string f; std::getline(fields, f, '\t');) v.push_back(f);
+    if (v.size() != 17 && v.size() != 21 && v.size() != 22)
+      throw Error(tsv.string(), "a row without 17, 21 or 22 columns: " + line);
+    if (!rows.empty() && (v.size() > 17) != *with_mc) throw Error(tsv.string(), "rows with and without the MC columns");
+    *with_mc = v.size() > 17;
+    try {
+      SetRow s{v[0], v[1], v[2], v[3], std::stod(v[16]), {}, std::nullopt};
+      Row& r = s.row;
+      r.mean_rel = std::stod(v[4]);
+      r.rel_l1 = std::stod(v[5]);
+      r.bias = std::stod(v[6]);
+      r.upper_mean_rel = std::stod(v[7]);
+      r.upper_bias = std::stod(v[8]);
+      r.lower_mean_rel = std::stod(v[9]);
+      r.lower_bias = std::stod(v[10]);
+      r.ssim = std::stod(v[11]);
+      r.shadow_mae = std::stod(v[12]);
+      r.car_pixels = std::stoi(v[13]);
+      r.shade_ms = std::stod(v[14]);
+      r.total_ms = std::stod(v[15]);
+      if (*with_mc) {
+        Row mc;
+        mc.mean_rel = std::stod(v[17]);
+        mc.bias = std::stod(v[18]);
+        mc.lower_mean_rel = std::stod(v[19]);
+        mc.shade_ms = std::stod(v[20]);
+        mc.upper_mean_rel = v.size() > 21 ? std::stod(v[21]) : std::numeric_limits<double>::quiet_NaN();
+        s.mc = mc;
+      }
+      rows.push_back(std::move(s));
+    } catch (const std::exception&) {
+      throw Error(tsv.string(), "a number that does not parse in: " + line);
+    }
+  }
+  if (rows.empty()) throw Error(tsv.string(), "holds no row");
+  return rows;
+}
+
 }  // namespace
 
 int RunBenchRenderSet(const BenchRenderSetOptions& o) {
+  if (o.report_only) {
+    bool with_mc = false;
+    std::string machine = "unknown";
+    const std::vector<SetRow> rows = ReadSetRows(fs::path(o.out_dir) / "render_set.tsv", &with_mc, &machine);
+    // The page names the run's command and its Monte-Carlo settings: they must be the TSV's.
+    if (with_mc != (o.mc_samples > 0))
+      throw UsageError("--report-only", with_mc ? "the TSV has the Monte-Carlo columns: give the run's --mc-samples"
+                                                : "the TSV has no Monte-Carlo columns: drop --mc-samples");
+    WriteSetReport(rows, o, machine);
+    std::cout << "bench render --set: report rewritten from " << rows.size() << " rows\n";
+    return 0;
+  }
   const fs::path envs =
       o.envs_dir.empty() ? fs::path(ODVR_SOURCE_DIR) / ".." / "shared" / "data" / "env" : fs::path(o.envs_dir);
   const std::vector<SetImage> images = LoadSet(o.set_dir, envs, o.ground_bounce, o.only);

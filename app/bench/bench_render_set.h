@@ -25,6 +25,9 @@ struct BenchRenderSetOptions {
   int mc_samples = 0;
   bool mc_exact = false;
   unsigned mc_seed = 1;
+  // Rewrite render_set.md and .png from out_dir's render_set.tsv; set_dir still gives the notes of
+  // what the set left out, and mc_samples / mc_exact must be the run's.
+  bool report_only = false;
 };
 
 // Renders and scores every image of the set; writes render_set.md, .tsv and .png in out_dir.

@@ -101,7 +101,7 @@ TEST(BenchRenderSetGL, OnlyAndTheMonteCarloBaseline) {
   const auto rows = TsvRows(d.dir / "render_set.tsv");
   ASSERT_EQ(rows.size(), 2u) << "hall × diffuse × two grounds";
   for (const auto& v : rows) {
-    ASSERT_EQ(v.size(), 21u);
+    ASSERT_EQ(v.size(), 22u);
     EXPECT_EQ(v[1], "hall");
     EXPECT_EQ(v[2], "diffuse");
     const double mc_err = std::stod(v[17]), mc_bias = std::stod(v[18]);
@@ -196,13 +196,58 @@ TEST(BenchRenderSet, AMalformedSetIsRefusedNamingTheFile) {
   EXPECT_NE(none.err.find("--only: names no image of " + kSet.string()), std::string::npos) << none.err;
 
   // The sweep's options are refused, not left unused: the set renders at the default configuration.
-  for (const std::string option : {"--supersample 2", "--levels 3", "--no-hd", "--report-only"}) {
+  for (const std::string option : {"--supersample 2", "--levels 3", "--no-hd"}) {
     const CliRun sweep =
         RunOdvr("bench render --set " + kSet.string() + " " + option + " --out " + (d.dir / "out").string());
     EXPECT_EQ(sweep.exit_code, 2) << option << ": " << sweep.err;
     EXPECT_NE(sweep.err.find(option.substr(0, option.find(' ')) + ": is the sweep's"), std::string::npos) << sweep.err;
     EXPECT_FALSE(fs::exists(d.dir / "out/render_set.md"));
   }
+}
+
+// --report-only rewrites the page from the TSV a run wrote, renders nothing (no GL), reads the
+// set only for what it left out, and refuses a TSV that does not match its flags or parse.
+TEST(BenchRenderSet, ReportOnlyRewritesThePageFromTheTsv) {
+  ScratchDir d("bench_render_set_report");
+  fs::create_directories(d.dir / "set/police");
+  std::ofstream(d.dir / "set/police/set.json") << "{\"left_out\": {\"as-is\": \"a reason\"}}";
+  const auto write_tsv = [&](const std::string& extra) {
+    std::ofstream(d.dir / "render_set.tsv")
+        << "# odvr bench render --set on a test machine\n# model\tmap\t...\n"
+        << "police\tsky\tglossy\tnone\t0.1\t0.1\t0.9\t0.1\t0.9\t0.2\t0.8\t0.8\t-1\t1000\t10\t12\t0.03" << extra
+        << "\npolice\tcity\tdiffuse\tcatcher\t0.3\t0.2\t1.1\t0.2\t1\t0.4\t1.2\t0.7\t0.02\t900\t20\t22\t0.04" << extra
+        << "\n";
+  };
+  const std::string run = "bench render --set " + (d.dir / "set").string() + " --out " + d.dir.string();
+  write_tsv("");
+  const CliRun r = RunOdvr(run + " --report-only");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("report rewritten from 2 rows"), std::string::npos) << r.out;
+  const std::string md = ReadText(d.dir / "render_set.md");
+  EXPECT_NE(md.find("on a test machine"), std::string::npos) << md;
+  EXPECT_NE(md.find("| all | 2 | 0.200 | "), std::string::npos) << md;
+  EXPECT_NE(md.find("- police, as-is: a reason."), std::string::npos) << md;
+  EXPECT_EQ(TsvRows(d.dir / "render_set.tsv").size(), 2u);
+
+  // Monte-Carlo columns need the run's --mc-samples, and their absence refuses it.
+  const CliRun extra = RunOdvr(run + " --report-only --mc-samples 64");
+  EXPECT_EQ(extra.exit_code, 2) << extra.err;
+  write_tsv("\t0.2\t0.9\t0.3\t30");
+  const CliRun missing = RunOdvr(run + " --report-only");
+  EXPECT_EQ(missing.exit_code, 2) << missing.err;
+  EXPECT_NE(missing.err.find("give the run's --mc-samples"), std::string::npos) << missing.err;
+  const CliRun mc = RunOdvr(run + " --report-only --mc-samples 64 --mc-exact");
+  ASSERT_EQ(mc.exit_code, 0) << mc.err;
+  EXPECT_NE(ReadText(d.dir / "render_set.md").find("## The Monte-Carlo baseline on the same images"),
+            std::string::npos);
+  EXPECT_EQ(RunOdvr(run + " --report-only --mc-samples 64 --only sky").exit_code, 2);
+
+  std::ofstream(d.dir / "render_set.tsv") << "police\tsky\tglossy\tnone\tx\n";
+  const CliRun bad = RunOdvr(run + " --report-only");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find((d.dir / "render_set.tsv").string() + ": a row without 17, 21 or 22 columns"),
+            std::string::npos)
+      << bad.err;
 }
 
 }  // namespace
