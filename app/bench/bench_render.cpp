@@ -494,7 +494,7 @@ void WriteReport(const std::vector<Row>& rows, const BenchRenderOptions& o, cons
      << "axis / as an SG); `mc` rows: the Monte-Carlo shader on the same G-buffer and voxels; `mc-exact` rows: "
      << "the same with shadow rays against the triangles (the ground's lit fraction still from the voxels). `k`: "
         "shaded samples per pixel along each axis (`RenderOptions::supersample`), resolved with Cycles' pixel "
-        "filter (Blackman-Harris, 1.5 px), `c`: every sample only where a pixel needs it "
+        "filter (Blackman-Harris reaching ±1.5 px), `c`: every sample only where a pixel needs it "
         "(`RenderOptions::supersample_contrast`); MC `samples` are rays per pixel. Times are one "
      << "render each, after an untimed render of at most 33×33 pixels (sides a power of two where the row's "
         "are: llvmpipe compiles a variant per kind) that compiles the row's shaders, on the device named "

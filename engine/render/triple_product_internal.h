@@ -175,9 +175,10 @@ struct ReferenceInputs {
 void ShadeReference(const ReferenceInputs& in, RenderResult* result, std::vector<PixelCounts>* counts);
 
 // RenderOptions::supersample: output pixel X gathers the shaded samples x = kX + j,
-// j ∈ [−k, 2k), with weight W[j + k]·W[i + k] (rows alike); W is the Blackman-Harris window
-// 1.5 output pixels wide at the sample's offset (x + ½)/k − (X + ½), 0 outside it — Cycles'
-// default pixel filter. render_resolve.comp reads the same table.
+// j ∈ [−k, 2k), with weight W[j + k]·W[i + k] (rows alike); W is the Blackman-Harris window over
+// offsets (x + ½)/k − (X + ½) in (−1.5, 1.5) output pixels, 0 outside it — Cycles' default pixel
+// filter: its filter_width 1.5 is the window's half-width, Cycles doubling a Blackman-Harris
+// width before tabulating it (film.cpp's filter_table). render_resolve.comp reads the same table.
 std::vector<float> SupersampleWeights(int k);
 
 // The resolve on the CPU, as render_resolve.comp does it: `shaded` holds car, car_alpha, shadow

@@ -572,7 +572,8 @@ void ShadeReference(const ReferenceInputs& given, RenderResult* result, std::vec
 }
 
 std::vector<float> SupersampleWeights(int k) {
-  constexpr double kHalfWidth = 0.75, kTwoPi = 6.283185307179586;
+  // Cycles' filter_width 1.5, which it doubles for Blackman-Harris: the window reaches ±1.5 px.
+  constexpr double kHalfWidth = 1.5, kTwoPi = 6.283185307179586;
   std::vector<float> weights(static_cast<std::size_t>(3 * k), 0.f);
   for (int j = -k; j < 2 * k; ++j) {
     const double t = (((j + 0.5) / k - 0.5) / kHalfWidth + 1) / 2;  // 0..1 across the window

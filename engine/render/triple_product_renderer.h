@@ -188,10 +188,10 @@ struct RenderOptions {
   bool monte_carlo_exact_visibility = false;
   // Shaded samples per output pixel along each axis (1..4): the G-buffer and the shading run at k×
   // the camera's size and each layer is resolved to it with Cycles' default pixel filter
-  // (Blackman-Harris, 1.5 px wide), so panel edges, spokes and highlights narrower than a pixel are
-  // averaged over it instead of point-sampled. Against the Cycles references k = 2 helps the glossy
-  // paints most and the diffuse ones a little; k = 3 does no better, its filter reaching into the
-  // neighbours' samples.
+  // (Blackman-Harris reaching ±1.5 px: the neighbours' samples weigh in, as Cycles' do), so panel
+  // edges, spokes and highlights narrower than a pixel are averaged over it instead of
+  // point-sampled. Against the Cycles references k = 2 helps the glossy paints most and the
+  // diffuse ones a little.
   int supersample = 1;
   // With supersample > 1, each pixel's other samples are shaded only where it needs them
   // (render_flag.comp): where its samples see different surfaces (coverage, material, a normal

@@ -30,9 +30,11 @@ using odvr::testing::SunnySky;
 using odvr::testing::View;
 using ShadingRateGL = odvr::testing::GlTest;
 
-// Cycles' default pixel filter: Blackman-Harris over 1.5 output pixels, 1 at the pixel's centre,
-// symmetric, 0 at ±0.75 and beyond; at k = 2 that is the 2×2 box (the neighbours' samples lie at
-// ±0.75 or farther), at k = 3 and 4 it reaches into the neighbouring pixels.
+// Cycles' default pixel filter: filter_width 1.5, which Cycles doubles for Blackman-Harris
+// (film.cpp's filter_table), so the window reaches ±1.5 output pixels: 1 at the pixel's centre,
+// symmetric, falling to 0 at ±1.5, every table entry inside it; at every k the neighbouring
+// pixels' samples weigh in, at k = 2 the nearest ones (±0.75) with Blackman-Harris' value at a
+// quarter of its width.
 TEST(ShadingRate, SupersampleWeightsAreCyclesPixelFilter) {
   for (int k = 1; k <= kMaxSupersample; ++k) {
     const std::vector<float> w = detail::SupersampleWeights(k);
@@ -41,21 +43,26 @@ TEST(ShadingRate, SupersampleWeightsAreCyclesPixelFilter) {
       const double offset = (j + 0.5) / k - 0.5;
       const float wj = w[static_cast<std::size_t>(j + k)];
       EXPECT_FLOAT_EQ(wj, w[static_cast<std::size_t>(k - 1 - j + k)]) << k << " " << j;  // offset → −offset
-      if (std::abs(offset) >= 0.75 - 1e-12) {
-        EXPECT_EQ(wj, 0.f) << k << " " << j;
-      } else {
-        EXPECT_GT(wj, 0.f) << k << " " << j;
+      EXPECT_LT(std::abs(offset), 1.5) << "the table spans the window";
+      EXPECT_GT(wj, 0.f) << k << " " << j;
+      // Falling away from the centre.
+      if (offset > 0 && j + 1 < 2 * k) {
+        EXPECT_GT(wj, w[static_cast<std::size_t>(j + 1 + k)]) << k << " " << j;
       }
       if (std::abs(offset) < 1e-12) {
         EXPECT_NEAR(wj, 1.0, 1e-6);
       }
     }
   }
-  const std::vector<float> box = detail::SupersampleWeights(2);
-  EXPECT_EQ(box[0] + box[1] + box[4] + box[5], 0.f);
-  EXPECT_FLOAT_EQ(box[2], box[3]);
-  const std::vector<float> three = detail::SupersampleWeights(3);
-  EXPECT_GT(three[2], 0.f);  // offset −2/3: the left neighbour's last sample
+  // k = 2: offsets ±0.25, ±0.75, ±1.25 against Blackman-Harris 0.35875 − 0.48829 cos a +
+  // 0.14128 cos 2a − 0.01168 cos 3a at a = 2π (offset / 3 + ½).
+  const std::vector<float> two = detail::SupersampleWeights(2);
+  const auto bh = [](double offset) {
+    const double a = 2 * 3.141592653589793 * (offset / 3 + 0.5);
+    return 0.35875 - 0.48829 * std::cos(a) + 0.14128 * std::cos(2 * a) - 0.01168 * std::cos(3 * a);
+  };
+  for (int j = 0; j < 6; ++j) EXPECT_NEAR(two[static_cast<std::size_t>(j)], bh((j - 2 + 0.5) / 2 - 0.5), 1e-6) << j;
+  EXPECT_NEAR(two[1], 0.2175, 0.0001) << "the neighbour's nearer sample, at 0.75 px";
 }
 
 TEST_F(ShadingRateGL, SupersampledIsTheSamplesResolvedWithCyclesPixelFilter) {
