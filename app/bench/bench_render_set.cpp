@@ -179,23 +179,45 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
   return images;
 }
 
-// What render_reference.py left out of each model's images and why (set.json's "left_out", absent
-// in sets made before it had any): one bullet per model and material kind, or "" when nothing was.
-std::string LeftOutNotes(const fs::path& set_dir) {
+// What the set's set.json files say of it: the references' size and samples (render_reference.py's
+// settings, one line per distinct kind) and what it left out of each model's images and why
+// ("left_out", absent in sets made before it had any).
+std::string SetNotes(const fs::path& set_dir) {
   if (!fs::is_directory(set_dir)) throw Error(set_dir.string(), "is not a directory");
-  std::string notes;
   std::vector<fs::path> models;
   for (const auto& entry : fs::directory_iterator(set_dir))
     if (fs::exists(entry.path() / "set.json")) models.push_back(entry.path());
   std::sort(models.begin(), models.end());
+  std::map<std::string, std::vector<std::string>> settings;  // description → models
+  std::string left_out;
   for (const fs::path& dir : models) {
-    const nlohmann::json js = ReadJsonFile(dir / "set.json");
-    if (!js.contains("left_out") || !js.at("left_out").is_object()) continue;
-    for (const auto& [kind, why] : js.at("left_out").items())
-      notes +=
-          "- " + dir.filename().string() + ", " + kind + ": " + (why.is_string() ? why.get<std::string>() : "") + ".\n";
+    const fs::path set_json = dir / "set.json";
+    const nlohmann::json js = ReadJsonFile(set_json);
+    const std::string model = dir.filename().string();
+    try {
+      if (js.contains("settings")) {
+        const auto& g = js.at("settings");
+        settings[fmt::format("{}×{} pixels, {} samples per pixel × {} seeds", g.at("size").at(0).get<int>(),
+                             g.at("size").at(1).get<int>(), g.at("spp").get<int>(), g.at("seeds").size())]
+            .push_back(model);
+      }
+      if (js.contains("left_out") && js.at("left_out").is_object())
+        for (const auto& [kind, why] : js.at("left_out").items())
+          left_out += "- " + model + ", " + kind + ": " + why.get<std::string>() + ".\n";
+    } catch (const nlohmann::json::exception& e) {
+      throw Error(set_json.string(), std::string("a field is missing or malformed: ") + e.what());
+    }
   }
-  return notes.empty() ? notes : "Left out of the set, with the reason `render_reference.py` gave:\n\n" + notes + "\n";
+  std::string notes;
+  for (const auto& [what, names] : settings) {
+    std::string list;
+    for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+    notes += "The references of " + list + ": " + what + ".\n";
+  }
+  if (!notes.empty()) notes += "\n";
+  if (!left_out.empty())
+    notes += "Left out of the set, with the reason `render_reference.py` gave:\n\n" + left_out + "\n";
+  return notes;
 }
 
 std::string F(double v, int digits = 3) { return fmt::format("{:.{}f}", v, digits); }
@@ -325,7 +347,7 @@ void WriteSetReport(const std::vector<SetRow>& rows, const BenchRenderSetOptions
         "as a mean relative error on car pixels "
         "(from its two seeds' renders: |a − b| / √2 per pixel, over √2 for their mean); an error near it is "
         "noise, not the model.\n\n"
-     << LeftOutNotes(o.set_dir)
+     << SetNotes(o.set_dir)
      << "| set | images | error median | error p90 | bias median | bias p10–p90 | upper half: error | lower "
         "quarter: error | reference noise | shade ms |\n|---|---|---|---|---|---|---|---|---|---|\n"
      << DistributionLine("all", all, SgRow) << GroupTable("material", rows, [](const SetRow& r) { return r.material; })

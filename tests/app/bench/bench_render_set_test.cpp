@@ -88,6 +88,7 @@ TEST(BenchRenderSetGL, ScoresEveryImageAndReportsTheRowsDistributions) {
                             "| park | 6 |", "| hall | 6 |"})
     EXPECT_NE(md.find(group), std::string::npos) << group << "\n" << md;
   EXPECT_NE(md.find("Median car-pixel error ≤ 0.08: **"), std::string::npos) << md;
+  EXPECT_NE(md.find("The references of car: 96×54 pixels, 256 samples per pixel × 2 seeds."), std::string::npos) << md;
 }
 
 // --only picks images by name before any is read; --mc-samples adds the Monte-Carlo baseline on
