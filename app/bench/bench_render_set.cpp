@@ -411,7 +411,15 @@ std::vector<SetRow> ReadSetRows(const fs::path& tsv, bool* with_mc, std::string*
         mc.upper_mean_rel = v.size() > 21 ? std::stod(v[21]) : std::numeric_limits<double>::quiet_NaN();
         s.mc = mc;
       }
+      // Only the MC rows' upper-half error may be unknown (NaN, from an older TSV): a median over a
+      // NaN would be garbage on the page.
+      for (double x : {r.mean_rel, r.rel_l1, r.bias, r.upper_mean_rel, r.lower_mean_rel, r.shade_ms, s.ref_noise})
+        if (!std::isfinite(x)) throw Error(tsv.string(), "a value that is not a finite number in: " + line);
+      if (s.mc && !(std::isfinite(s.mc->mean_rel) && std::isfinite(s.mc->bias) && std::isfinite(s.mc->shade_ms)))
+        throw Error(tsv.string(), "a value that is not a finite number in: " + line);
       rows.push_back(std::move(s));
+    } catch (const Error&) {
+      throw;
     } catch (const std::exception&) {
       throw Error(tsv.string(), "a number that does not parse in: " + line);
     }

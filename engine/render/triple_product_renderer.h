@@ -76,9 +76,11 @@ struct MaterialOverride {
 inline constexpr int kMaxSupersample = 4;
 // A still's samples per pixel along each axis (`odvr render`, `odvr bench render --set`): a pixel
 // integrates what it covers, as a camera's does, so every pixel whose samples disagree
-// (RenderOptions::supersample_contrast) is shaded 2×2; 3×3 and 4×4 measure no better. The players
-// keep RenderOptions' 1 and shade at their own rate.
-inline constexpr int kStillSupersample = 2;
+// (RenderOptions::supersample_contrast) is shaded 3×3 and resolved with Cycles' filter, whose
+// window reaches into the neighbours: 2×2 leaves a quarter-pixel between the centre sample and
+// the pixel's centre and fewer samples under the window's slopes (decision 42). The players keep
+// RenderOptions' 1 and shade at their own rate.
+inline constexpr int kStillSupersample = 3;
 
 // 45°: the cap holding half of a cosine-weighted hemisphere's irradiance (sin² 45° = 1/2).
 inline constexpr double kGroundLitHalfAngle = 0.78539816339744831;

@@ -97,7 +97,7 @@ TEST(BenchRenderSetGL, OnlyAndTheMonteCarloBaseline) {
   if (!fs::exists(fs::path(ODVR_SHARED_DIR) / "data/env/hall.exr")) GTEST_SKIP() << "the shared maps are absent";
   ScratchDir d("bench_render_set_mc");
   const CliRun r = RunOdvr("bench render --set " + kSet.string() +
-                           " --only hall_diffuse --mc-samples 4 --mc-exact --out " + d.dir.string());
+                           " --only hall_diffuse --mc-samples 9 --mc-exact --out " + d.dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto rows = TsvRows(d.dir / "render_set.tsv");
   ASSERT_EQ(rows.size(), 2u) << "hall × diffuse × two grounds";
@@ -107,13 +107,13 @@ TEST(BenchRenderSetGL, OnlyAndTheMonteCarloBaseline) {
     EXPECT_EQ(v[2], "diffuse");
     const double mc_err = std::stod(v[17]), mc_bias = std::stod(v[18]);
     EXPECT_GT(mc_err, 0);
-    EXPECT_LT(mc_err, 1.0) << "4 samples: noisy, not wrong";
+    EXPECT_LT(mc_err, 1.0) << "9 samples: noisy, not wrong";
     EXPECT_GT(mc_bias, 1 / 1.5);
     EXPECT_LT(mc_bias, 1.5);
   }
   const std::string md = ReadText(d.dir / "render_set.md");
   EXPECT_NE(md.find("## The Monte-Carlo baseline on the same images"), std::string::npos) << md;
-  EXPECT_NE(md.find("4 samples per pixel (over every one of its 2×2 samples), seed 1, visibility by shadow rays "
+  EXPECT_NE(md.find("9 samples per pixel (over every one of its 3×3 samples), seed 1, visibility by shadow rays "
                     "against the triangles"),
             std::string::npos)
       << md;
@@ -242,6 +242,14 @@ TEST(BenchRenderSet, ReportOnlyRewritesThePageFromTheTsv) {
   EXPECT_NE(ReadText(d.dir / "render_set.md").find("## The Monte-Carlo baseline on the same images"),
             std::string::npos);
   EXPECT_EQ(RunOdvr(run + " --report-only --mc-samples 64 --only sky").exit_code, 2);
+
+  write_tsv("");
+  std::string nan_row = ReadText(d.dir / "render_set.tsv");
+  nan_row.replace(nan_row.find("0.1\t0.1\t0.9"), 3, "nan");
+  std::ofstream(d.dir / "render_set.tsv") << nan_row;
+  const CliRun nan = RunOdvr(run + " --report-only");
+  EXPECT_NE(nan.exit_code, 0);
+  EXPECT_NE(nan.err.find("a value that is not a finite number"), std::string::npos) << nan.err;
 
   std::ofstream(d.dir / "render_set.tsv") << "police\tsky\tglossy\tnone\tx\n";
   const CliRun bad = RunOdvr(run + " --report-only");

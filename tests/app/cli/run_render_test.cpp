@@ -106,13 +106,15 @@ TEST(RunRender, CompositeOnlyGivesTheSameImageAndCounts) {
 
 // The lighting lists' options: each lobe's own depth and the renderer's overlap cutoff by default,
 // --bin-depth and --overlap-cutoff 0.001 give the bins' full lists back (more SGs per pixel);
-// --ground-lit-map 0 traces the ground's lit fraction per cone again.
+// --ground-lit-map 0 traces the ground's lit fraction per cone again. One sample per pixel, so
+// that the shaded car samples are the geometry's alone (adaptive supersampling flags pixels by
+// their light, which the options change).
 TEST(RunRender, ListOptionsReachTheRenderer) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_lists");
   nlohmann::json j[2];
   for (int k = 0; k < 2; ++k) {
-    const CliRun r = RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 --json --out " +
+    const CliRun r = RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 --supersample 1 --json --out " +
                              (d.dir / (std::to_string(k) + ".png")).string() +
                              (k ? " --bin-depth --overlap-cutoff 0.001 --ground-lit-map 0" : ""));
     ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -137,7 +139,7 @@ TEST(RunRender, ListOptionsReachTheRenderer) {
 }
 
 // --shading-rate 2 shades one pixel of each smooth 2x2 block: fewer pixels shaded, the option
-// echoed in the JSON, and only 1 or 2 accepted. Given alone it drops the still's default 2×2
+// echoed in the JSON, and only 1 or 2 accepted. Given alone it drops the still's default 3×3
 // supersampling, which it excludes.
 TEST(RunRender, HalfShadingRateShadesFewerPixels) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
@@ -172,7 +174,8 @@ TEST(RunRender, CpuAndGpuAgree) {
 
 // --supersample 2 with --supersample-contrast 0: four shaded samples per pixel (the counts say so),
 // the output at --size, and the car's outline with partial coverage where point sampling has
-// none. By default (2×2, adaptive) the pixels that need them get their four, the others one.
+// none. Adaptive (the contrast's default) the pixels that need them get their four, the others
+// one; a still's default is 3×3 so (render::kStillSupersample).
 TEST(RunRender, SupersampleShadesFourSamplesPerPixelAndSoftensTheOutline) {
   if (!HaveData()) GTEST_SKIP() << "street_a is absent (the shared test data)";
   ScratchDir d("run_render_ss");
@@ -180,15 +183,15 @@ TEST(RunRender, SupersampleShadesFourSamplesPerPixelAndSoftensTheOutline) {
     std::string args;
     int car = 0, partial = 0, fully = 0;
   };
-  Run runs[] = {{"--supersample 1"}, {"--supersample 2 --supersample-contrast 0"}, {""}};
-  for (std::size_t i = 0; i < 3; ++i) {
+  Run runs[] = {{"--supersample 1"}, {"--supersample 2 --supersample-contrast 0"}, {"--supersample 2"}, {""}};
+  for (std::size_t i = 0; i < 4; ++i) {
     Run& run = runs[i];
     const std::string dir = (d.dir / std::to_string(i)).string();
     const CliRun r = RunOdvr("render " + kArgs + " --size 64x36 --voxels 64 " + run.args + " --json --layers " + dir +
                              " --out " + dir + "/frame.exr");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const auto j = nlohmann::json::parse(r.out);
-    EXPECT_EQ(j.at("counts").at("supersample").get<int>(), i == 0 ? 1 : 2);
+    EXPECT_EQ(j.at("counts").at("supersample").get<int>(), i == 0 ? 1 : i < 3 ? 2 : 3);
     run.car = j.at("counts").at("car_pixels").get<int>();
     run.fully = j.at("counts").at("pixels_sampled_fully").get<int>();
     const auto alpha = odvr::image::LoadImage(dir + "/car_alpha.exr");
@@ -206,6 +209,9 @@ TEST(RunRender, SupersampleShadesFourSamplesPerPixelAndSoftensTheOutline) {
   EXPECT_EQ(runs[0].partial, 0);
   EXPECT_GT(runs[1].partial, 20);
   EXPECT_GT(runs[2].partial, 20);
+  EXPECT_GT(runs[3].fully, 0);
+  EXPECT_LT(runs[3].fully, 64 * 36);
+  EXPECT_GT(runs[3].car, runs[2].car) << "3×3 where a pixel needs it";
 }
 
 TEST(RunRender, ACarOutsideTheViewIsAWarningNamingIt) {
