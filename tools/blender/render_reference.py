@@ -21,7 +21,8 @@ Debian's Blender 3.4.1 (CPU Cycles, no denoiser):
     both ground set-ups: "catcher" (the plane below, as above) and "none" (the model alone under
     the whole map, odvr render's default). The model stands on the ground: lifted so that its
     lowest point is at y = 0 (world_from_model_odvr in each image's JSON). The camera frames the model as odvr render's default
-    camera does (from its front-left, a little above, 3.2 bounding radii off, 40 degrees). A model
+    camera does (from its front-left, a little above, 3.2 bounding radii off, 40 degrees), at
+    160x90 unless --size says otherwise. A model
     with a material that Blender's importer renders as another one (NOT_RENDERED_AS_SPECIFIED:
     ToyCar's sheen) gets no images of its own materials; set.json's "left_out" says why.
 
@@ -103,7 +104,7 @@ def parse_args():
     p.add_argument("--env-rotation", help="world_from_env 3x3, 9 comma-separated numbers, row-major (odvr frame)")
     p.add_argument("--env-strength", type=float, default=1.0)
     p.add_argument("--camera", default="5.2,1.9,4.4,0,0.55,0,30", help="px,py,pz,tx,ty,tz,vfov_deg (odvr frame)")
-    p.add_argument("--size", default="320x180", help="WxH (also the generalization set's)")
+    p.add_argument("--size", default=None, help="WxH (default 320x180; the generalization set's 160x90)")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel per seed (default 256; the set's own)")
     p.add_argument("--seeds", default="1", help="comma-separated render seeds; files hold their mean")
     p.add_argument("--material", default="as-is", choices=["as-is", "diffuse", "glossy"])
@@ -119,7 +120,7 @@ def parse_args():
     p.add_argument("--envs-dir", default=None, help="maps of the generalization set (default ../shared/data/env)")
     p.add_argument("--verify-env", metavar="DIR", help="check the environment orientation, write DIR/verify_env.json")
     a = p.parse_args(argv)
-    a.w, a.h = (int(v) for v in a.size.lower().split("x"))
+    a.w, a.h = (int(v) for v in a.size.lower().split("x")) if a.size else (None, None)
     a.seed_list = [int(s) for s in a.seeds.split(",")]
     a.paint_rgb = tuple(float(v) for v in a.paint.split(","))
     return a
@@ -723,7 +724,9 @@ def materials_not_rendered_as_specified(path):
     return out
 
 
-GENERALIZATION = {"size": (320, 180), "spp": 256, "seeds": [1, 2], "materials": ["as-is", "glossy", "diffuse"],
+# 160x90: the size docs/benchmarks/render_set.md was measured at; the four models' 396 images
+# take about 35 minutes on two cores.
+GENERALIZATION = {"size": (160, 90), "spp": 256, "seeds": [1, 2], "materials": ["as-is", "glossy", "diffuse"],
                   "grounds": ["catcher", "none"], "catcher_albedo": 0.18}
 
 
@@ -796,7 +799,7 @@ def main():
             sys.exit(2)
         repo = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
         envs_dir = a.envs_dir or os.path.normpath(os.path.join(repo, "..", "shared", "data", "env"))
-        generalization_set(a.generalization_set, a.model, envs_dir, a.threads, a.spp, (a.w, a.h))
+        generalization_set(a.generalization_set, a.model, envs_dir, a.threads, a.spp, (a.w, a.h) if a.size else None)
         return
     if not (a.model and a.env and a.out):
         print("render_reference.py: --model, --env and --out are needed (or --reference-set / --verify-env)")
@@ -807,7 +810,8 @@ def main():
         sys.exit(2)
     r = Renderer(a.model, a.threads, a.plane_size, a.catcher_albedo, a.paint_rgb)
     R = world_from_env_odvr(a.env_yaw_deg, a.env_rotation.split(",") if a.env_rotation else None)
-    info = r.render(a.out, a.env, R, a.env_strength, cam, a.w, a.h, a.spp or 256, a.seed_list, a.material)
+    info = r.render(a.out, a.env, R, a.env_strength, cam, a.w or 320, a.h or 180, a.spp or 256, a.seed_list,
+                    a.material)
     info["model"] = a.model
     info["model_box_odvr"] = r.box
     info["catcher"] = {"plane_size_m": a.plane_size, "albedo": a.catcher_albedo}
