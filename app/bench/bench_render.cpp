@@ -664,7 +664,7 @@ CommandFn AddBenchRender(CLI::App* sub) {
   AddRenderSwitches(sub, &o->switches);
   sub->add_option("--out", o->out_dir, "Where the table, TSV and plot go (docs/benchmarks: the committed pages)")
       ->capture_default_str();
-  CLI::Option* report_only = sub->add_flag(
+  sub->add_flag(
       "--report-only", o->report_only,
       "Rewrite the table and plot from the TSV already in --out (with --set: the run's --mc-samples and --mc-exact)");
   auto set = std::make_shared<BenchRenderSetOptions>();
@@ -672,12 +672,12 @@ CommandFn AddBenchRender(CLI::App* sub) {
                   "Instead of the sweep: the default configuration over a generalization set (render_reference.py "
                   "--generalization-set's folder), as distributions by map, model, material, ground and region");
   sub->add_option("--envs", set->envs_dir, "The set's maps (default ../shared/data/env)");
-  return [o, set, mc_samples, sweep_only, report_only] {
+  return [o, set, mc_samples, sweep_only] {
     if (set->set_dir.empty()) return RunBenchRender(*o);
     for (const CLI::Option* option : sweep_only)
       if (option->count() > 0)
         throw UsageError(option->get_name(), "is the sweep's; --set renders every image at the default configuration");
-    if (report_only->count() > 0 && (!o->only.empty() || !o->images_dir.empty()))
+    if (o->report_only && (!o->only.empty() || !o->images_dir.empty()))
       throw UsageError("--report-only", "renders nothing: no --only or --images with it");
     set->report_only = o->report_only;
     set->only = o->only;

@@ -138,6 +138,15 @@ std::optional<SetImage> LoadSetImage(const fs::path& dir, const std::string& nam
 }
 
 // Every model folder of the set (one with a set.json), in name order.
+std::vector<fs::path> ModelFolders(const fs::path& set_dir) {
+  if (!fs::is_directory(set_dir)) throw Error(set_dir.string(), "is not a directory");
+  std::vector<fs::path> models;
+  for (const auto& entry : fs::directory_iterator(set_dir))
+    if (fs::exists(entry.path() / "set.json")) models.push_back(entry.path());
+  std::sort(models.begin(), models.end());
+  return models;
+}
+
 std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir, bool ground_bounce,
                               const std::vector<std::string>& only) {
   // BenchRenderSetOptions::only, before anything is read: a map is loaded per image.
@@ -145,11 +154,7 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
     return only.empty() || std::any_of(only.begin(), only.end(),
                                        [&](const std::string& part) { return name.find(part) != std::string::npos; });
   };
-  if (!fs::is_directory(set_dir)) throw Error(set_dir.string(), "is not a directory");
-  std::vector<fs::path> models;
-  for (const auto& entry : fs::directory_iterator(set_dir))
-    if (fs::exists(entry.path() / "set.json")) models.push_back(entry.path());
-  std::sort(models.begin(), models.end());
+  const std::vector<fs::path> models = ModelFolders(set_dir);
   if (models.empty()) throw Error(set_dir.string(), "holds no model folder with a set.json");
   std::vector<SetImage> images;
   int named = 0;  // images that --only lets through, their maps present or not
@@ -183,14 +188,9 @@ std::vector<SetImage> LoadSet(const fs::path& set_dir, const fs::path& envs_dir,
 // settings, one line per distinct kind) and what it left out of each model's images and why
 // ("left_out", absent in sets made before it had any).
 std::string SetNotes(const fs::path& set_dir) {
-  if (!fs::is_directory(set_dir)) throw Error(set_dir.string(), "is not a directory");
-  std::vector<fs::path> models;
-  for (const auto& entry : fs::directory_iterator(set_dir))
-    if (fs::exists(entry.path() / "set.json")) models.push_back(entry.path());
-  std::sort(models.begin(), models.end());
   std::map<std::string, std::vector<std::string>> settings;  // description → models
   std::string left_out;
-  for (const fs::path& dir : models) {
+  for (const fs::path& dir : ModelFolders(set_dir)) {
     const fs::path set_json = dir / "set.json";
     const nlohmann::json js = ReadJsonFile(set_json);
     const std::string model = dir.filename().string();

@@ -76,10 +76,9 @@ struct MaterialOverride {
 inline constexpr int kMaxSupersample = 4;
 // A still's samples per pixel along each axis (`odvr render`, `odvr bench render --set`): a pixel
 // integrates what it covers, as a camera's does, so every pixel whose samples disagree
-// (RenderOptions::supersample_contrast) is shaded 3×3 and resolved with Cycles' filter, whose
-// window reaches into the neighbours: 2×2 leaves a quarter-pixel between the centre sample and
-// the pixel's centre and fewer samples under the window's slopes (decision 42). The players keep
-// RenderOptions' 1 and shade at their own rate.
+// (RenderOptions::supersample_contrast) is shaded 3×3 and resolved with Cycles' filter: with the
+// filter reaching into the neighbours, 3×3 measures better than 2×2 for half again the shading
+// (decision 42). The players keep RenderOptions' 1 and shade at their own rate.
 inline constexpr int kStillSupersample = 3;
 
 // 45°: the cap holding half of a cosine-weighted hemisphere's irradiance (sin² 45° = 1/2).

@@ -43,7 +43,6 @@ TEST(ShadingRate, SupersampleWeightsAreCyclesPixelFilter) {
       const double offset = (j + 0.5) / k - 0.5;
       const float wj = w[static_cast<std::size_t>(j + k)];
       EXPECT_FLOAT_EQ(wj, w[static_cast<std::size_t>(k - 1 - j + k)]) << k << " " << j;  // offset → −offset
-      EXPECT_LT(std::abs(offset), 1.5) << "the table spans the window";
       EXPECT_GT(wj, 0.f) << k << " " << j;
       // Falling away from the centre.
       if (offset > 0 && j + 1 < 2 * k) {
